@@ -1,0 +1,97 @@
+"""Input checks shared by the whole package.
+
+Every check raises ``ValueError`` naming the parameter, its value and the
+bound, before any work is done (never ``assert``: it vanishes under -O).
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import numpy as np
+
+#: Largest loss factor for which the MSF damped-oscillation solution exists,
+#: tg(beta) <= 1/3, equivalently k_x >= (pi - 1)/(pi + 1), paper (100).
+TAN_DELTA_MAX = 1.0 / 3.0
+
+
+class ValidityWarning(UserWarning):
+    """The inputs leave the range in which the paper's model is valid."""
+
+
+def _as_array(name: str, value) -> np.ndarray:
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"{name} must be a number, got {value!r}") from exc
+    return arr
+
+
+def _show(value) -> str:
+    arr = np.asarray(value, dtype=float)
+    if arr.ndim == 0:
+        return repr(float(arr))
+    return np.array2string(arr, threshold=6)
+
+
+def check_finite(name: str, value, allow_inf: bool = False) -> np.ndarray:
+    """Refuse NaN (always) and infinities (unless ``allow_inf``)."""
+    arr = _as_array(name, value)
+    if np.any(np.isnan(arr)):
+        raise ValueError(f"{name} = {_show(value)} is NaN; a finite number is required")
+    if not allow_inf and np.any(np.isinf(arr)):
+        raise ValueError(f"{name} = {_show(value)} is infinite; a finite number is required")
+    return arr
+
+
+def check_positive(name: str, value, allow_inf: bool = False, unit: str = "") -> np.ndarray:
+    """Refuse values that are not > 0 (and NaN, and inf unless allowed)."""
+    arr = check_finite(name, value, allow_inf=allow_inf)
+    if np.any(arr <= 0):
+        u = f" {unit}" if unit else ""
+        raise ValueError(f"{name} = {_show(value)}{u} must be > 0")
+    return arr
+
+
+def check_range(name: str, value, lo: float, hi: float, lo_open=False, hi_open=False) -> np.ndarray:
+    """Refuse values outside [lo, hi] (or the open variants)."""
+    arr = check_finite(name, value)
+    bad_lo = arr <= lo if lo_open else arr < lo
+    bad_hi = arr >= hi if hi_open else arr > hi
+    if np.any(bad_lo) or np.any(bad_hi):
+        lb = "(" if lo_open else "["
+        hb = ")" if hi_open else "]"
+        raise ValueError(f"{name} = {_show(value)} is outside {lb}{lo:g}, {hi:g}{hb}")
+    return arr
+
+
+def check_tan_delta(name: str, value, strict: bool = False) -> np.ndarray:
+    """Loss factor tg(beta) >= 0; above 1/3 the model leaves its validity (100).
+
+    With ``strict`` the violation is an error, otherwise a ``ValidityWarning``.
+    """
+    arr = check_finite(name, value)
+    if np.any(arr < 0):
+        raise ValueError(f"{name} = {_show(value)} must be >= 0")
+    if np.any(arr > TAN_DELTA_MAX * (1 + 1e-12)):
+        msg = (
+            f"{name} = {_show(value)} exceeds 1/3: outside the validity of the MSF "
+            "damped-oscillation solution, paper (100) (tg(beta) <= 1/3, "
+            "k_x >= (pi-1)/(pi+1))"
+        )
+        if strict:
+            raise ValueError(msg)
+        warnings.warn(msg, ValidityWarning, stacklevel=3)
+    return arr
+
+
+def check_choice(name: str, value: str, choices) -> str:
+    choices = tuple(choices)
+    if value not in choices:
+        raise ValueError(f"{name} = {value!r} is not one of {', '.join(map(repr, choices))}")
+    return value
+
+
+def is_inf(value) -> bool:
+    return isinstance(value, (int, float)) and math.isinf(value)

@@ -1,0 +1,462 @@
+"""Contact force laws behind one interface, vectorised over n contacts.
+
+The contract (:class:`ForceLaw`), what an implementer must do:
+
+1. Take the pair (:class:`~msf_contact.materials.ContactPair`), the surface
+   curvature (:class:`~msf_contact.geometry.Curvature`) and its own options
+   in ``__init__``; validate them there with ``ValueError``.
+2. ``onset(v_n0, mass)``: per-contact constants fixed when a contact begins
+   (n,) arrays in a dict, e.g. the MSF collision frequency omega_x.
+3. ``normal_force(x, xdot, onset)``: signed normal force [N] (n,),
+   repulsive positive; the separation rule (clamping) is applied by
+   :meth:`ForceLaw.contact_normal_force`, shared by every caller.
+4. ``separation_indicator(x, xdot, onset)``: B with F_n = S(x) B, S >= 0;
+   the force-zero rule ends a contact where B < 0 in restitution.
+5. ``tangential_force(x, s, sdot, onset, F_n)``: force on body 1 along the
+   two contact axes (a, b) [N] (n, 2), opposing the tangential
+   displacement s [m] (n, 2) of body 1 relative to body 2, capped at
+   mu F_n if ``mu`` is set.
+6. ``parameters()``: everything needed to reproduce the law (for records).
+
+Forces never contain NaN for x >= 0: k_p is clamped in ``msf`` mode at
+x/R -> 2 and ``outside(x)`` flags such contacts for the caller to report.
+"""
+
+from __future__ import annotations
+
+import abc
+import math
+from typing import ClassVar
+
+import numpy as np
+from scipy.optimize import brentq
+
+from . import closed_forms as cf
+from ._normal import SEPARATIONS, integrate_normal
+from ._validate import check_choice, check_finite, check_positive, check_range, check_tan_delta
+from .geometry import KP_MODES, ContactGeometry, Curvature, kp_clamped
+from .materials import ContactPair
+
+OMEGA_MODES = ("self-consistent", "paper")
+
+
+def _arr(v, n=None):
+    a = np.atleast_1d(np.asarray(v, dtype=float))
+    if n is not None and a.shape[0] != n:
+        a = np.broadcast_to(a, (n,)).copy()
+    return a
+
+
+class ForceLaw(abc.ABC):
+    """Base of all laws. See the module docstring for the contract."""
+
+    name: ClassVar[str] = ""
+    #: True if the law has the correlation coefficient k_p setting.
+    has_kp: ClassVar[bool] = False
+
+    def __init__(
+        self,
+        pair: ContactPair,
+        curvature: Curvature,
+        *,
+        separation: str = "force-zero",
+        mu: float | None = None,
+        kp_mode: str = "hertz",
+    ):
+        self.pair = pair
+        self.curvature = curvature
+        self.separation = check_choice("separation", separation, SEPARATIONS)
+        if mu is not None:
+            check_positive("mu", mu)
+        self.mu = mu
+        self.kp_mode = check_choice("kp_mode", kp_mode, KP_MODES)
+        self.geom = ContactGeometry.of(pair, curvature)
+        self.moduli = pair.moduli()
+
+    # -- contract ---------------------------------------------------------
+    @abc.abstractmethod
+    def onset(self, v_n0, mass) -> dict[str, np.ndarray]:
+        """Per-contact constants at onset. v_n0: approach speed [m/s] (n,), mass [kg] (n,)."""
+
+    @abc.abstractmethod
+    def normal_force(self, x, xdot, onset) -> np.ndarray:
+        """Signed normal force [N] (n,)."""
+
+    @abc.abstractmethod
+    def separation_indicator(self, x, xdot, onset) -> np.ndarray:
+        """Bracket B of F_n = S(x) B (n,)."""
+
+    @abc.abstractmethod
+    def tangential_stiffness(self, x, onset) -> tuple[np.ndarray, np.ndarray]:
+        """Tangential (stiffness [N/m], damping [N s/m]) along axes a and b, each (n, 2)."""
+
+    def parameters(self) -> dict:
+        m = self.moduli
+        return {
+            "law": self.name, "separation": self.separation, "mu": self.mu,
+            "kp_mode": self.kp_mode, "modulus_convention": self.pair.convention,
+            "E_eff": m.E, "E_loss_eff": m.E_loss, "G_eff": m.G, "G_loss_eff": m.G_loss,
+            "tan_delta_eff": m.tan_delta, "D1": m.D1, "D2": m.D2,
+            "R_a": self.geom.R_a, "R_b": self.geom.R_b, "k_ha": self.geom.k_ha, "k_hb": self.geom.k_hb,
+            "body1": self.pair.body1.name, "body2": self.pair.body2.name,
+        }
+
+    # -- shared mechanics -------------------------------------------------
+    def contact_normal_force(self, x, xdot, onset) -> np.ndarray:
+        """Normal force after the separation rule: force-zero clamps at 0
+        (no adhesion); overlap-zero lets it be tensile. (n,) [N]."""
+        F = self.normal_force(x, xdot, onset)
+        return np.maximum(F, 0.0) if self.separation == "force-zero" else F
+
+    def tangential_force(self, x, s, sdot, onset, F_n=None):
+        """Force on body 1 along the contact axes (n, 2) [N]:
+        F = -(b s' + k s), capped at mu F_n when mu is set.
+
+        Returns (F_t (n, 2), sliding (n,) bool)."""
+        k, b = self.tangential_stiffness(x, onset)
+        s = np.asarray(s, dtype=float).reshape(-1, 2)
+        sdot = np.asarray(sdot, dtype=float).reshape(-1, 2)
+        F = -(b * sdot + k * s)
+        sliding = np.zeros(F.shape[0], bool)
+        if self.mu is not None and F_n is not None:
+            cap = self.mu * np.maximum(np.asarray(F_n, dtype=float), 0.0)
+            mag = np.hypot(F[:, 0], F[:, 1])
+            sliding = mag > cap
+            scale = np.where(sliding, cap / np.where(mag > 0, mag, 1.0), 1.0)
+            F = F * scale[:, None]
+        return F, sliding
+
+    def kp(self, x, R):
+        """k_p (n,) in this law's mode, clamped below x/R = 2 (see outside())."""
+        return kp_clamped(x, R, self.kp_mode)[0]
+
+    def outside(self, x) -> np.ndarray:
+        """(n,) True where the contact is outside the model's geometry (x >= 2R in msf mode)."""
+        x = np.asarray(x, dtype=float)
+        if self.kp_mode != "msf":
+            return np.zeros(x.shape, bool)
+        return (x / min(self.geom.R_a, self.geom.R_b)) >= 2.0
+
+    def psi(self, x):
+        """(29): psi = k_pa sqrt(R_a) + k_pb sqrt(R_b) [m^1/2] (n,)."""
+        g = self.geom
+        return self.kp(x, g.R_a) * math.sqrt(g.R_a) + self.kp(x, g.R_b) * math.sqrt(g.R_b)
+
+    def hertz_scale(self, v_n0, mass) -> np.ndarray:
+        """Elastic Hertz x_max [m] for these speeds and masses (a length scale)."""
+        return cf.hertz_x_max(mass, v_n0, self.moduli.E, self.geom.R)
+
+    def solve_normal(self, v0: float, mass: float, onset: dict, n_samples: int = 0):
+        """The isolated normal impact of one contact under this law (reference)."""
+        o = {k: np.atleast_1d(v)[:1] for k, v in onset.items()}
+
+        def force(x, v):
+            return float(self.normal_force(np.array([x]), np.array([v]), o)[0])
+
+        def ind(x, v):
+            return float(self.separation_indicator(np.array([x]), np.array([v]), o)[0])
+
+        xs = float(self.hertz_scale(v0, mass))
+        return integrate_normal(force, ind, mass, v0, xs, self.separation, n_samples)
+
+    def _mindlin(self, x, n):
+        """Hertz-Mindlin no-slip tangential stiffness 8 G a, a = sqrt(R x) [N/m] (n, 2)."""
+        a = np.sqrt(self.geom.R * np.maximum(x, 0.0))
+        k = 8.0 * self.moduli.G * a
+        return np.repeat(k[:, None], 2, axis=1), np.zeros((n, 2))
+
+
+# ---------------------------------------------------------------- MSF -------
+class MSFLaw(ForceLaw):
+    """Method of the Specific Forces, (37)/(43)/(47).
+
+    F_n = psi (2 eta'_E x' sqrt(x) + 2/3 E' x^(3/2)), eta'_E = E''/omega_x (46);
+    F_ty = -(eta'_G P_bx y' + G' P_bx y), F_tz likewise with P_ax (36), (37).
+
+    omega: ``"self-consistent"`` (default, omega_x = pi/tau of the collision
+    solved with this law), ``"paper"`` (tau from (95) with k_x of (89)), or a
+    number [rad/s] (fixed, e.g. a DMA frequency). omega_y, omega_z from the
+    equivalent tangential oscillator (84)/(86) at the predicted x_max.
+    """
+
+    name = "msf"
+    has_kp = True
+
+    def __init__(self, pair, curvature, *, omega="self-consistent", kp_mode="msf",
+                 separation="force-zero", mu=None, temperature=None, strict=False):
+        super().__init__(pair, curvature, separation=separation, mu=mu, kp_mode=kp_mode)
+        if isinstance(omega, str):
+            check_choice("omega", omega, OMEGA_MODES)
+        else:
+            check_positive("omega", omega, unit="rad/s")
+            omega = float(omega)
+        self.omega = omega
+        self.temperature = temperature
+        self.strict = strict
+        if not pair.frequency_dependent:
+            check_tan_delta("tan_delta (effective, (91))", self.moduli.tan_delta, strict=strict)
+
+    def parameters(self):
+        p = super().parameters()
+        p.update(omega_mode=self.omega if isinstance(self.omega, str) else "fixed",
+                 omega_fixed=None if isinstance(self.omega, str) else self.omega,
+                 temperature=self.temperature)
+        return p
+
+    # -- per-contact moduli (frequency-dependent materials) -----------------
+    def _moduli_at(self, omega):
+        if not self.pair.frequency_dependent:
+            return self.moduli
+        return self.pair.at(omega, self.temperature).moduli()
+
+    def _onset_dict(self, omega_x, mod, v, m, x_m):
+        P_bx = self.geom.k_ha * x_m + 2 * float(self.kp(x_m, self.geom.R_b)) * math.sqrt(self.geom.R_b * x_m)
+        P_ax = self.geom.k_hb * x_m + 2 * float(self.kp(x_m, self.geom.R_a)) * math.sqrt(self.geom.R_a * x_m)
+        tg_G = mod.G_loss / mod.G if mod.G > 0 else 0.0
+        w_y = float(cf.omega_y_equivalent(m, P_bx, mod.G, tg_G))
+        w_z = float(cf.omega_y_equivalent(m, P_ax, mod.G, tg_G))
+        return dict(omega_x=omega_x, omega_y=w_y, omega_z=w_z, E=mod.E, eta_E=mod.E_loss / omega_x,
+                    G=mod.G, eta_Gy=mod.G_loss / w_y, eta_Gz=mod.G_loss / w_z, x_max_pred=x_m,
+                    v_n0=v, mass=m)
+
+    def _solve_with_omega(self, omega, v, m):
+        mod = self._moduli_at(omega)
+        o = {"E": np.array([mod.E]), "eta_E": np.array([mod.E_loss / omega])}
+        return self.solve_normal(v, m, o), mod
+
+    def onset_one(self, v: float, m: float) -> dict:
+        """Onset constants for one contact (see :meth:`onset`)."""
+        if self.omega == "paper":
+            omega, mod = self._omega_paper(v, m)
+            kp = cf.kp_for_mode(self.kp_mode, m, v, mod.E, mod.tan_delta, self.geom.R)
+            x_m = float(cf.x_max_90(m, v, mod.E, mod.tan_delta, self.geom.R, kp))
+            return self._onset_dict(omega, mod, v, m, x_m)
+        if isinstance(self.omega, float):
+            sol, mod = self._solve_with_omega(self.omega, v, m)
+            return self._onset_dict(self.omega, mod, v, m, sol.x_max)
+        omega, sol, mod = self.self_consistent(v, m)
+        return self._onset_dict(omega, mod, v, m, sol.x_max)
+
+    def onset(self, v_n0, mass):
+        v = _arr(v_n0)
+        m = _arr(mass, v.shape[0])
+        check_positive("onset normal speed v_n0", v, unit="m/s")
+        check_positive("mass", m, unit="kg")
+        rows = [self.onset_one(float(a), float(b)) for a, b in zip(v, m)]
+        return {k: np.array([r[k] for r in rows]) for k in rows[0]}
+
+    def _omega_paper(self, v, m):
+        """tau from (95) as printed, with k_x from (89); iterated for
+        frequency-dependent materials."""
+        omega = math.pi / float(cf.hertz_tau(m, v, self.moduli.E, self.geom.R))
+        for _ in range(50):
+            mod = self._moduli_at(omega)
+            kp = cf.kp_for_mode(self.kp_mode, m, v, mod.E, mod.tan_delta, self.geom.R)
+            tau = float(cf.tau_95_as_printed(m, v, mod.E, self.geom.R, kp, cf.cor_89(mod.tan_delta)))
+            new = math.pi / tau
+            if abs(new - omega) <= 1e-12 * omega:
+                return new, mod
+            omega = new
+        return omega, mod
+
+    def self_consistent(self, v: float, m: float):
+        """omega_x with omega_x * tau(omega_x) = pi, tau the contact duration of
+        this collision solved with this law (46), (87). Returns (omega, NormalSolution, moduli)."""
+        omega_h = math.pi / float(cf.hertz_tau(m, v, self.moduli.E, self.geom.R))
+
+        def g(log_w):
+            sol, _ = self._solve_with_omega(math.exp(log_w), v, m)
+            return math.log(math.exp(log_w) * sol.tau / math.pi)
+
+        lo, hi = math.log(omega_h) - 1.0, math.log(omega_h) + 1.0
+        glo, ghi = g(lo), g(hi)
+        k = 0
+        while glo * ghi > 0 and k < 20:
+            lo, hi = lo - 1.0, hi + 1.0
+            glo, ghi = g(lo), g(hi)
+            k += 1
+        if glo * ghi > 0:
+            raise RuntimeError(f"no self-consistent omega_x found for v = {v!r} m/s, m = {m!r} kg")
+        log_w = brentq(g, lo, hi, xtol=1e-13, rtol=1e-13)
+        omega = math.exp(log_w)
+        sol, mod = self._solve_with_omega(omega, v, m)
+        return omega, sol, mod
+
+    # -- forces -------------------------------------------------------------
+    def normal_force(self, x, xdot, onset):
+        x = np.maximum(np.asarray(x, dtype=float), 0.0)
+        xdot = np.asarray(xdot, dtype=float)
+        sx = np.sqrt(x)
+        # (37): F_n = 2 eta psi x' sqrt(x) + 2/3 E' psi x^(3/2)
+        return self.psi(x) * sx * (2.0 * onset["eta_E"] * xdot + (2.0 / 3.0) * onset["E"] * x)
+
+    def separation_indicator(self, x, xdot, onset):
+        return 2.0 * onset["eta_E"] * np.asarray(xdot) + (2.0 / 3.0) * onset["E"] * np.asarray(x)
+
+    def shear_lengths(self, x):
+        """(36): (P_bx, P_ax) [m], each (n,)."""
+        g = self.geom
+        x = np.maximum(np.asarray(x, dtype=float), 0.0)
+        P_bx = g.k_ha * x + 2.0 * self.kp(x, g.R_b) * np.sqrt(g.R_b * x)
+        P_ax = g.k_hb * x + 2.0 * self.kp(x, g.R_a) * np.sqrt(g.R_a * x)
+        return P_bx, P_ax
+
+    def tangential_stiffness(self, x, onset):
+        P_bx, P_ax = self.shear_lengths(x)
+        G = np.asarray(onset["G"], dtype=float)
+        k = np.stack([G * P_bx, G * P_ax], axis=-1).reshape(-1, 2)
+        b = np.stack([onset["eta_Gy"] * P_bx, onset["eta_Gz"] * P_ax], axis=-1).reshape(-1, 2)
+        return k, b
+
+
+# ------------------------------------------------------- comparison laws -----
+class _HertzFamily(ForceLaw):
+    """Comparison laws use k_p = 1 and the pair's effective modulus: the
+    elastic part is (29) with k_p = 1, i.e. Hertz (30) for a sphere."""
+
+    def __init__(self, pair, curvature, *, separation="force-zero", mu=None):
+        super().__init__(pair, curvature, separation=separation, mu=mu, kp_mode="hertz")
+        self.K = 2.0 / 3.0 * self.moduli.E * (math.sqrt(self.geom.R_a) + math.sqrt(self.geom.R_b))
+
+    def tangential_stiffness(self, x, onset):
+        x = np.atleast_1d(np.asarray(x, dtype=float))
+        return self._mindlin(x, x.shape[0])
+
+
+class HertzLaw(_HertzFamily):
+    """Elastic Hertz (30): F_n = 2/3 E (sqrt(R_a) + sqrt(R_b)) x^(3/2) (= 4/3 E sqrt(R) x^(3/2)
+    for a sphere); tangential Hertz-Mindlin 8 G sqrt(R x) with the optional Coulomb cap."""
+
+    name = "hertz"
+
+    def onset(self, v_n0, mass):
+        v = _arr(v_n0)
+        return {"v_n0": v, "mass": _arr(mass, v.shape[0])}
+
+    def normal_force(self, x, xdot, onset):
+        x = np.maximum(np.asarray(x, dtype=float), 0.0)
+        return self.K * x**1.5
+
+    def separation_indicator(self, x, xdot, onset):
+        return np.asarray(x, dtype=float)
+
+
+class KuwabaraKonoLaw(_HertzFamily):
+    """Kuwabara-Kono / Brilliantov et al. 1996: F_n = K (x^(3/2) + 3/2 A x' x^(1/2)),
+    K = 2/3 E psi (= rho = 4/3 E sqrt(R) for a sphere); A [s] the dissipative constant."""
+
+    name = "kuwabara-kono"
+
+    def __init__(self, pair, curvature, *, A, separation="force-zero", mu=None):
+        super().__init__(pair, curvature, separation=separation, mu=mu)
+        check_finite("A", A)
+        if A < 0:
+            raise ValueError(f"A = {A!r} s must be >= 0")
+        self.A = float(A)
+
+    def parameters(self):
+        p = super().parameters()
+        p["A"] = self.A
+        return p
+
+    def onset(self, v_n0, mass):
+        v = _arr(v_n0)
+        return {"v_n0": v, "mass": _arr(mass, v.shape[0])}
+
+    def normal_force(self, x, xdot, onset):
+        x = np.maximum(np.asarray(x, dtype=float), 0.0)
+        return self.K * np.sqrt(x) * (x + 1.5 * self.A * np.asarray(xdot))
+
+    def separation_indicator(self, x, xdot, onset):
+        return np.asarray(x) + 1.5 * self.A * np.asarray(xdot)
+
+
+class HuntCrossleyLaw(_HertzFamily):
+    """Hunt & Crossley (1975): F_n = K x^(3/2) (1 + chi x'), with the
+    damping of Flores et al. (2011): chi = 8 (1 - e)/(5 e v0), v0 the onset
+    speed, e the target restitution (0 < e <= 1)."""
+
+    name = "hunt-crossley"
+
+    def __init__(self, pair, curvature, *, cor, separation="force-zero", mu=None):
+        super().__init__(pair, curvature, separation=separation, mu=mu)
+        check_range("cor (Hunt-Crossley target restitution)", cor, 0.0, 1.0, lo_open=True)
+        self.cor = float(cor)
+
+    def parameters(self):
+        p = super().parameters()
+        p["cor"] = self.cor
+        return p
+
+    def onset(self, v_n0, mass):
+        v = _arr(v_n0)
+        check_positive("onset normal speed v_n0", v, unit="m/s")
+        return {"v_n0": v, "mass": _arr(mass, v.shape[0]), "chi": 8.0 * (1 - self.cor) / (5.0 * self.cor * v)}
+
+    def normal_force(self, x, xdot, onset):
+        x = np.maximum(np.asarray(x, dtype=float), 0.0)
+        return self.K * x**1.5 * (1.0 + onset["chi"] * np.asarray(xdot))
+
+    def separation_indicator(self, x, xdot, onset):
+        return 1.0 + onset["chi"] * np.asarray(xdot)
+
+
+class SpringDashpotLaw(_HertzFamily):
+    """Linear spring-dashpot: F_n = k x + c x'. k [N/m], c [N s/m]; when not
+    given, the paper's equivalent constants (84) with k_p = 1 at the onset
+    speed (C_x, B_x with x_m of (90) and omega_x of the equivalent oscillator)."""
+
+    name = "spring-dashpot"
+
+    def __init__(self, pair, curvature, *, k=None, c=None, separation="force-zero", mu=None):
+        super().__init__(pair, curvature, separation=separation, mu=mu)
+        if k is not None:
+            check_positive("k (spring-dashpot stiffness)", k, unit="N/m")
+        if c is not None:
+            check_finite("c (spring-dashpot damping)", c)
+            if c < 0:
+                raise ValueError(f"c = {c!r} N s/m must be >= 0")
+        self.k, self.c = k, c
+
+    def parameters(self):
+        p = super().parameters()
+        p.update(k=self.k, c=self.c)
+        return p
+
+    def onset(self, v_n0, mass):
+        v = _arr(v_n0)
+        m = _arr(mass, v.shape[0])
+        mod, R = self.moduli, self.geom.R
+        x_m = cf.x_max_90(m, v, mod.E, mod.tan_delta, R, 1.0)
+        w = cf.omega_x_equivalent(m, x_m, mod.E, mod.tan_delta, R, 1.0)
+        B, C, _, _ = cf.equivalent_parameters_84(x_m, mod.E, mod.E_loss, mod.G, mod.G_loss, R, 1.0, w, w, 0.0)
+        k = np.full(v.shape, self.k) if self.k is not None else C
+        c = np.full(v.shape, self.c) if self.c is not None else B
+        return {"v_n0": v, "mass": m, "k": k, "c": c}
+
+    def normal_force(self, x, xdot, onset):
+        return onset["k"] * np.maximum(np.asarray(x, dtype=float), 0.0) + onset["c"] * np.asarray(xdot)
+
+    def separation_indicator(self, x, xdot, onset):
+        return self.normal_force(x, xdot, onset)
+
+
+# ------------------------------------------------------------- registry -----
+LAWS: dict[str, type[ForceLaw]] = {
+    cls.name: cls for cls in (MSFLaw, HertzLaw, KuwabaraKonoLaw, HuntCrossleyLaw, SpringDashpotLaw)
+}
+
+
+def get_law(name_or_class) -> type[ForceLaw]:
+    """A law class by registry name, or the class itself; the error lists the names."""
+    if isinstance(name_or_class, type) and issubclass(name_or_class, ForceLaw):
+        return name_or_class
+    try:
+        return LAWS[name_or_class]
+    except (KeyError, TypeError):
+        raise ValueError(f"unknown law {name_or_class!r}; valid names: {', '.join(LAWS)}") from None
+
+
+def make_law(name_or_class, pair: ContactPair, curvature: Curvature, **options) -> ForceLaw:
+    """Construct a law from the registry with its options."""
+    return get_law(name_or_class)(pair, curvature, **options)

@@ -1,0 +1,283 @@
+"""Reference impact solver: an isolated collision integrated to tight tolerance.
+
+Planar model (the plane of incidence holds the normal n, from body 2 toward
+body 1, and the tangent t along the incident tangential velocity; spins are
+about n x t). Body 2 is a half-space (infinite mass and radius, fixed) or a
+sphere. Equations, with m the reduced mass (section 4), l_i = R_i - x/2 the
+lever arm of the contact point (mid-overlap, as the engines place it) and
+F_t the tangential force on body 1 from the law:
+
+    m x''  = -F_n(x, x')                         (45)/(49)
+    m vt'  =  F_t                                (45)
+    J_1 w1' = -l_1 F_t,  J_2 w2' = -l_2 F_t       (45), M = F_t l_x (47)
+
+The tangential displacement s fed to the law is, in ``paper`` mode, the
+relative centre-of-mass displacement since onset (49); in ``contact-point``
+mode (default) the integral of the contact point's relative tangential
+velocity u = vt - w1 l1 - w2 l2 (DEM practice).
+
+Tolerances: see ``_normal.RTOL``; COR, tau, x_max, F_max converge to 1e-6.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.integrate import solve_ivp
+
+from ._normal import ATOL_SCALED, RTOL
+from ._validate import ValidityWarning, check_choice, check_finite, check_positive, check_range
+from .geometry import area
+from .laws import ForceLaw
+from .materials import Material
+from .record import ImpactRecord
+
+TANGENTIAL_MODES = ("contact-point", "paper")
+#: f = |F_t|/F_n is reported only while F_n >= this share of F_max: at
+#: force-zero separation F_n -> 0 with F_t != 0 and f diverges.
+F_RATIO_FLOOR = 0.01
+
+
+@dataclass(frozen=True)
+class Body:
+    """A colliding body. radius [m] (inf: half-space), mass [kg] (inf: fixed),
+    inertia [kg m^2] about the spin axis (default solid sphere 2/5 m R^2)."""
+
+    material: Material
+    radius: float
+    mass: float
+    inertia: float | None = None
+
+    def __post_init__(self):
+        check_positive("radius", self.radius, allow_inf=True, unit="m")
+        check_positive("mass", self.mass, allow_inf=True, unit="kg")
+        if self.inertia is not None:
+            check_positive("inertia", self.inertia, allow_inf=True, unit="kg m^2")
+
+    @property
+    def J(self) -> float:
+        if self.inertia is not None:
+            return self.inertia
+        if math.isinf(self.mass):
+            return math.inf
+        return 0.4 * self.mass * self.radius**2
+
+    @staticmethod
+    def sphere(material: Material, radius: float, mass: float | None = None) -> "Body":
+        """A solid sphere; mass from the density when not given."""
+        check_positive("radius", radius, unit="m")
+        if mass is None:
+            mass = 4.0 / 3.0 * math.pi * radius**3 * material.density
+        return Body(material, radius, mass)
+
+    @staticmethod
+    def half_space(material: Material) -> "Body":
+        return Body(material, math.inf, math.inf)
+
+
+def reduced_mass(m1: float, m2: float) -> float:
+    """1/m = 1/m1 + 1/m2 (section 4); a fixed body (inf) leaves m1."""
+    if math.isinf(m2):
+        return m1
+    if math.isinf(m1):
+        return m2
+    return m1 * m2 / (m1 + m2)
+
+
+def check_impact_inputs(law: ForceLaw, body1: Body, body2: Body, speed, angle_deg, spin, strict=False):
+    """All bad-input checks of an impact, before any work (issue 2)."""
+    check_positive("speed", speed, unit="m/s")
+    check_range("angle (degrees to the plate)", angle_deg, 0.0, 90.0, lo_open=True)
+    check_finite("spin", spin)
+    if math.isinf(body1.mass):
+        raise ValueError("body 1 (the projectile) must have a finite mass")
+    c = law.pair.sound_speed()
+    if speed >= c:
+        raise ValueError(f"speed = {speed!r} m/s is at or above the sound speed sqrt(E'/rho) = {c:.4g} m/s "
+                         "of the softer body (the paper's model needs a subsonic impact, section 1)")
+
+
+def simulate_impact(
+    law: ForceLaw,
+    body1: Body,
+    body2: Body,
+    speed: float,
+    angle_deg: float = 90.0,
+    spin: float = 0.0,
+    tangential: str = "contact-point",
+    n_samples: int = 0,
+    strict: bool = False,
+) -> ImpactRecord:
+    """One isolated impact of body 1 on body 2, returned as an impact record.
+
+    speed [m/s] relative impact speed; angle_deg the paper's alpha (to the
+    plate, 90 = normal); spin [rad/s] body 1's initial spin, positive for
+    rolling in the direction of incidence. ``n_samples`` > 0 adds force-time
+    curves (``record.inputs['curves']``).
+    """
+    check_choice("tangential", tangential, TANGENTIAL_MODES)
+    check_impact_inputs(law, body1, body2, speed, angle_deg, spin, strict)
+    a = math.radians(angle_deg)
+    vn0 = speed * math.sin(a)  # (section 4): V_0x = V0 sin(alpha)
+    vt0 = speed * math.cos(a) if angle_deg < 90.0 else 0.0
+    m = reduced_mass(body1.mass, body2.mass)
+    J1, J2 = body1.J, body2.J
+    R1, R2 = body1.radius, body2.radius
+    inv_J2 = 0.0 if math.isinf(J2) else 1.0 / J2
+    onset = law.onset([vn0], [m])
+    o1 = {k: np.atleast_1d(v)[:1] for k, v in onset.items()}
+    xs = float(law.hertz_scale(vn0, m))
+    ts = xs / vn0
+    paper = tangential == "paper"
+    vscale = max(abs(vt0), abs(spin) * R1, vn0)
+
+    def forces(x, vx, s, u):
+        xa = np.array([max(x, 0.0)])
+        Fn = float(law.contact_normal_force(xa, np.array([vx]), o1)[0])
+        Fc = float(law.normal_force(xa, np.array([0.0]), o1)[0])
+        Ft, _ = law.tangential_force(xa, np.array([[s, 0.0]]), np.array([[u, 0.0]]), o1, np.array([Fn]))
+        k, b = law.tangential_stiffness(xa, o1)
+        return Fn, Fc, float(Ft[0, 0]), float(b[0, 0]) * u * u
+
+    def lever(x, R):
+        return 0.0 if math.isinf(R) else R - 0.5 * max(x, 0.0)
+
+    def u_of(x, vt, w1, w2):
+        return vt - w1 * lever(x, R1) - w2 * lever(x, R2)
+
+    def rhs(t, y):
+        x, vx, s, vt, w1, w2, Wc, Wb, Q = y
+        u = u_of(x, vt, w1, w2)
+        Fn, Fc, Ft, q = forces(x, vx, s, vt if paper else u)
+        return (vx, -Fn / m, vt if paper else u, Ft / m,
+                -lever(x, R1) * Ft / J1, -lever(x, R2) * Ft * inv_J2,
+                Fc * vx, (Fn - Fc) * vx, q)
+
+    def ev_turn(t, y):
+        return y[1]
+
+    ev_turn.direction = -1
+
+    def ev_overlap(t, y):
+        return y[0]
+
+    ev_overlap.terminal, ev_overlap.direction = True, -1
+
+    def ev_force(t, y):
+        if y[1] >= 0:
+            return 1.0
+        return float(law.separation_indicator(np.array([max(y[0], 0.0)]), np.array([y[1]]), o1)[0])
+
+    ev_force.terminal, ev_force.direction = True, -1
+    events = [ev_turn, ev_overlap] + ([ev_force] if law.separation == "force-zero" else [])
+    y0 = (0.0, vn0, 0.0, vt0, spin, 0.0, 0.0, 0.0, 0.0)
+    Escale = m * speed**2
+    atol = np.array([xs, vn0, xs * vscale / vn0, vscale, vscale / R1, vscale / R1, Escale, Escale, Escale]) * ATOL_SCALED
+    sol = solve_ivp(rhs, (0.0, 1e3 * ts), y0, method="DOP853", rtol=RTOL, atol=atol,
+                    events=events, dense_output=True, first_step=1e-6 * ts)
+    if sol.status == -1:
+        raise RuntimeError(f"impact integration failed: {sol.message}")
+    if len(sol.t_events[0]) == 0:
+        raise RuntimeError("the impact never reached maximum compression")
+    tau1 = float(sol.t_events[0][0])
+    y_turn = sol.y_events[0][0]
+    ends = [(float(sol.t_events[k][0]), name, sol.y_events[k][0])
+            for k, name in ((1, "overlap-zero"), (2, "force-zero"))
+            if k < len(sol.t_events) and len(sol.t_events[k])]
+    if ends:
+        tau, ended_by, y_end = min(ends, key=lambda e: e[0])
+    else:
+        tau, ended_by, y_end = float(sol.t[-1]), "capture", sol.y[:, -1]
+    x_end, vx_end, s_end, vt_end, w1_end, w2_end, Wc_end, Wb_end, Q_end = y_end
+    x_max = float(y_turn[0])
+
+    outside = []
+    if law.outside(np.array([x_max]))[0]:
+        raise ValueError(f"x_max = {x_max:.6g} m >= 2R = {2 * law.geom.R:.6g} m: k_p = sqrt(2 - x/R) of (15) "
+                         "has no real value; the impact is outside the msf geometry (use a lower speed)")
+    if ended_by == "capture":
+        outside.append("the bodies never separated (over-damped): outside the model's validity (100)")
+
+    # peak force, pressures and friction ratio on a dense grid + refinement
+    tt = np.linspace(0.0, tau, max(n_samples, 2001))
+    Y = sol.sol(tt)
+    X = np.maximum(Y[0], 0.0)
+    o_n = {k: np.broadcast_to(v, X.shape) for k, v in o1.items()}
+    Fn_t = law.contact_normal_force(X, Y[1], o_n)
+    U_t = Y[3] if paper else Y[3] - Y[4] * np.where(np.isinf(R1), 0, R1 - 0.5 * X) - Y[5] * (
+        0.0 if math.isinf(R2) else R2 - 0.5 * X)
+    Ft_t, _ = law.tangential_force(X, np.stack([Y[2], np.zeros_like(X)], -1),
+                                   np.stack([U_t, np.zeros_like(X)], -1), o_n, Fn_t)
+    k_pk = int(np.argmax(Fn_t))
+    F_max = _refine_max(lambda t: float(law.contact_normal_force(
+        np.array([max(float(sol.sol(t)[0]), 0.0)]), np.array([float(sol.sol(t)[1])]), o1)[0]),
+        tt, k_pk, float(Fn_t[k_pk]))
+    S_m = float(area(x_max, law.geom, law.kp_mode))
+    Fn_xm = float(law.contact_normal_force(np.array([x_max]), np.array([0.0]), o1)[0])
+    Pc_max = 1.5 * Fn_xm / S_m  # (20), (41) at x_max
+    x_at_F = float(X[k_pk])
+    Pc_at_F = 1.5 * float(Fn_t[k_pk]) / float(area(x_at_F, law.geom, law.kp_mode)) if x_at_F > 0 else 0.0
+    mask = Fn_t >= F_RATIO_FLOOR * F_max
+    ratio = np.abs(Ft_t[:, 0][mask]) / Fn_t[mask]
+    f_min = float(np.min(ratio)) if ratio.size else None
+    f_max = float(np.max(ratio)) if ratio.size else None
+
+    v_out_n = max(-float(vx_end), 0.0)
+    Wc1, Wb1 = float(y_turn[6]), float(y_turn[7])
+    u_in = u_of(0.0, vt0, spin, 0.0)
+    u_out = u_of(float(x_end), float(vt_end), float(w1_end), float(w2_end))
+    J2_term = 0.0 if math.isinf(J2) else 0.5 * J2 * float(w2_end) ** 2
+    KE_t_in = 0.5 * m * vt0**2 + 0.5 * J1 * spin**2
+    KE_t_out = 0.5 * m * float(vt_end) ** 2 + 0.5 * J1 * float(w1_end) ** 2 + J2_term
+    tol = 1e-9 * Escale
+    if 0.5 * m * v_out_n**2 > 0.5 * m * vn0**2 + tol:
+        warnings.warn("normal energy increased in the impact: numerical or model error", ValidityWarning, stacklevel=2)
+
+    return ImpactRecord(
+        cor_n=v_out_n / vn0,
+        cor_t=(float(vt_end) / vt0) if vt0 != 0 else None,
+        cor_t_contact=(-u_out / u_in) if abs(u_in) > 1e-12 * vscale else None,
+        cor_tau_ratio=tau1 / (tau - tau1) if tau > tau1 else 0.0,
+        tau=tau, tau1=tau1, tau2=tau - tau1, x_max=x_max, F_max=F_max,
+        Pc_max=Pc_max, Pc_at_Fmax=Pc_at_F,
+        W_el_comp=Wc1, W_visc_comp=Wb1,
+        W_el_rest=-(float(Wc_end) - Wc1), W_visc_rest=float(Wb_end) - Wb1,
+        W_diss_n=0.5 * m * (vn0**2 - v_out_n**2),
+        W_diss_t=KE_t_in - KE_t_out, Q_t=float(Q_end),
+        spin_in=spin, spin_out=float(w1_end), f_min=f_min, f_max=f_max,
+        omega_x=_opt(onset, "omega_x"), omega_y=_opt(onset, "omega_y"),
+        ended_by=ended_by, law=law.name, engine="reference", dt=None,
+        parameters=law.parameters(),
+        inputs=_inputs(body1, body2, speed, angle_deg, spin, tangential, m, n_samples, tt, Fn_t, Ft_t, X),
+        outside_validity=outside,
+    )
+
+
+def _opt(d, key):
+    return float(d[key][0]) if key in d else None
+
+
+def _refine_max(f, tt, k, best):
+    from scipy.optimize import minimize_scalar
+
+    lo, hi = tt[max(k - 1, 0)], tt[min(k + 1, len(tt) - 1)]
+    if hi <= lo:
+        return best
+    r = minimize_scalar(lambda t: -f(t), bounds=(lo, hi), method="bounded",
+                        options={"xatol": 1e-15 + 1e-12 * hi})
+    return max(best, -float(r.fun))
+
+
+def _inputs(b1, b2, speed, angle, spin, tangential, m, n_samples, tt, Fn, Ft, X):
+    d = {
+        "speed": speed, "angle_deg": angle, "spin": spin, "tangential": tangential,
+        "mass_reduced": m, "body1": {"material": b1.material.name, "radius": b1.radius, "mass": b1.mass},
+        "body2": {"material": b2.material.name, "radius": b2.radius, "mass": b2.mass},
+    }
+    if n_samples > 0:
+        d["curves"] = {"t": tt.tolist(), "F_n": np.asarray(Fn).tolist(), "F_t": np.asarray(Ft[:, 0]).tolist(),
+                       "x": np.asarray(X).tolist()}
+    return d
