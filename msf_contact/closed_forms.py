@@ -280,6 +280,19 @@ def brilliantov_A_99(tan_delta, nu, k_p, tau):
     return k_p * tan_delta / math.pi * (1 - nu**2) * tau
 
 
+def brilliantov_A_98_corrected(E_loss, E_young, nu, k_p, omega):
+    """(98) with Brilliantov et al.'s (1996) dissipative force Y sqrt(R) A sqrt(xi) xi'/(1 - nu^2)
+    (coefficient 1, where the paper's (4*) prints 4): A = 4 E'' k_p (1 - nu^2)/(Y omega_x) [s]."""
+    return 4.0 * brilliantov_A_98(E_loss, E_young, nu, k_p, omega)
+
+
+def kuwabara_kono_A_equivalent(tan_delta, omega):
+    """A [s] for which the Kuwabara-Kono force rho sqrt(x)(x + 3/2 A x') with
+    rho = 4/3 k_p E' sqrt(R) (the same E' and k_p) equals the MSF normal force (47):
+    3/2 A rho = 4 k_p E'' sqrt(R)/omega_x, so A = 2 tg(beta)/omega_x, independent of k_p."""
+    return 2.0 * np.asarray(tan_delta) / np.asarray(omega)
+
+
 def paper_kp(x_m, R):
     """k_p at the maximum approach, (15), for the closed forms in ``msf`` mode."""
     return np.sqrt(2.0 - np.asarray(x_m) / R)
