@@ -31,6 +31,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.optimize import brentq
 
+from . import _scaling
 from . import closed_forms as cf
 from ._normal import SEPARATIONS, integrate_normal
 from ._validate import check_choice, check_finite, check_positive, check_range, check_tan_delta
@@ -77,6 +78,11 @@ class ForceLaw(abc.ABC):
     @abc.abstractmethod
     def onset(self, v_n0, mass) -> dict[str, np.ndarray]:
         """Per-contact constants at onset. v_n0: approach speed [m/s] (n,), mass [kg] (n,)."""
+
+    def onset_reference(self, v_n0, mass) -> dict[str, np.ndarray]:
+        """As onset(), solved to the reference solver's accuracy (laws with a
+        fast approximate onset override it)."""
+        return self.onset(v_n0, mass)
 
     @abc.abstractmethod
     def normal_force(self, x, xdot, onset) -> np.ndarray:
@@ -210,22 +216,63 @@ class MSFLaw(ForceLaw):
         return self.pair.at(omega, self.temperature).moduli()
 
     def _onset_dict(self, omega_x, mod, v, m, x_m):
-        P_bx = self.geom.k_ha * x_m + 2 * float(self.kp(x_m, self.geom.R_b)) * math.sqrt(self.geom.R_b * x_m)
-        P_ax = self.geom.k_hb * x_m + 2 * float(self.kp(x_m, self.geom.R_a)) * math.sqrt(self.geom.R_a * x_m)
+        """Onset constants from omega_x [rad/s], moduli, speeds [m/s], masses [kg]
+        and the predicted x_max [m]; all (n,) arrays (or scalars)."""
+        omega_x, v, m, x_m = (np.atleast_1d(np.asarray(a, dtype=float)) for a in (omega_x, v, m, x_m))
+        P_bx, P_ax = self.shear_lengths(x_m)
         tg_G = mod.G_loss / mod.G if mod.G > 0 else 0.0
-        w_y = float(cf.omega_y_equivalent(m, P_bx, mod.G, tg_G))
-        w_z = float(cf.omega_y_equivalent(m, P_ax, mod.G, tg_G))
-        return dict(omega_x=omega_x, omega_y=w_y, omega_z=w_z, E=mod.E, eta_E=mod.E_loss / omega_x,
-                    G=mod.G, eta_Gy=mod.G_loss / w_y, eta_Gz=mod.G_loss / w_z, x_max_pred=x_m,
-                    v_n0=v, mass=m)
+        w_y = cf.omega_y_equivalent(m, P_bx, mod.G, tg_G)  # (84)/(86)
+        w_z = cf.omega_y_equivalent(m, P_ax, mod.G, tg_G)
+        n = v.shape[0]
+        full = lambda a: np.broadcast_to(np.asarray(a, dtype=float), (n,)).copy()  # noqa: E731
+        return dict(omega_x=full(omega_x), omega_y=full(w_y), omega_z=full(w_z), E=full(mod.E),
+                    eta_E=full(mod.E_loss / omega_x), G=full(mod.G), eta_Gy=full(mod.G_loss / w_y),
+                    eta_Gz=full(mod.G_loss / w_z), x_max_pred=full(x_m), v_n0=full(v), mass=full(m))
 
     def _solve_with_omega(self, omega, v, m):
         mod = self._moduli_at(omega)
         o = {"E": np.array([mod.E]), "eta_E": np.array([mod.E_loss / omega])}
         return self.solve_normal(v, m, o), mod
 
+    # -- dimensionless fast path (msf_contact._scaling) ----------------------
+    @property
+    def scalable(self) -> bool:
+        """True when the normal impact is one dimensionless family: moduli
+        independent of frequency and k_p constant, or the msf k_p on a sphere."""
+        return not self.pair.frequency_dependent and (self.kp_mode != "msf" or self.geom.sphere)
+
+    def _scales(self, v, m):
+        """x_0 [m], t_0 [s], eps [-] of the dimensionless impact (see _scaling)."""
+        kp0 = 1.0 if self.kp_mode == "hertz" else math.sqrt(2.0)
+        K = 2.0 / 3.0 * self.moduli.E * kp0 * (math.sqrt(self.geom.R_a) + math.sqrt(self.geom.R_b))
+        x0 = (m * v**2 / K) ** 0.4
+        eps = x0 / (2.0 * self.geom.R) if self.kp_mode == "msf" else np.zeros_like(x0)
+        return x0, x0 / v, eps
+
+    def _onset_scaled(self, v, m, exact: bool):
+        tg = self.moduli.tan_delta
+        x0, t0, eps = self._scales(v, m)
+        if isinstance(self.omega, float):
+            gam = 3.0 * tg / (self.omega * t0)
+            xm = np.array([_scaling.unit_impact(float(g), float(e), self.separation).x_max
+                           for g, e in zip(gam, eps)])
+            return np.full(v.shape, self.omega), x0 * xm
+        gam, tau, xm = (np.empty_like(eps) for _ in range(3))
+        in_table = np.zeros(eps.shape, bool)
+        if self.kp_mode == "msf" and not exact:
+            in_table = eps <= _scaling.EPS_NODES[-1]
+            if np.any(in_table):
+                tab = _scaling.eps_table(tg, self.separation)(eps[in_table])
+                gam[in_table], tau[in_table], xm[in_table] = tab["gamma"], tab["tau"], tab["x_max"]
+        for i in np.flatnonzero(~in_table):
+            r = _scaling.self_consistent(tg, float(eps[i]), self.separation)
+            gam[i], tau[i], xm[i] = r.gamma, r.tau, r.x_max
+        omega = np.where(gam > 0, 3.0 * tg / np.where(gam > 0, gam, 1.0) / t0, math.pi / (tau * t0))
+        return omega, x0 * xm
+
     def onset_one(self, v: float, m: float) -> dict:
-        """Onset constants for one contact (see :meth:`onset`)."""
+        """Onset constants for one contact by direct integration of the
+        dimensional equation (no scaling): the slow, general path."""
         if self.omega == "paper":
             omega, mod = self._omega_paper(v, m)
             kp = cf.kp_for_mode(self.kp_mode, m, v, mod.E, mod.tan_delta, self.geom.R)
@@ -237,13 +284,28 @@ class MSFLaw(ForceLaw):
         omega, sol, mod = self.self_consistent(v, m)
         return self._onset_dict(omega, mod, v, m, sol.x_max)
 
-    def onset(self, v_n0, mass):
+    def _onset(self, v_n0, mass, exact: bool):
         v = _arr(v_n0)
         m = _arr(mass, v.shape[0])
         check_positive("onset normal speed v_n0", v, unit="m/s")
         check_positive("mass", m, unit="kg")
+        if self.scalable and self.omega != "paper":
+            omega, x_m = self._onset_scaled(v, m, exact)
+            return self._onset_dict(omega, self.moduli, v, m, x_m)
         rows = [self.onset_one(float(a), float(b)) for a, b in zip(v, m)]
-        return {k: np.array([r[k] for r in rows]) for k in rows[0]}
+        return {k: np.concatenate([r[k] for r in rows]) for k in rows[0]}
+
+    def onset(self, v_n0, mass):
+        """Onset constants (n,) arrays: omega_x, omega_y, omega_z [rad/s], E, G [Pa],
+        eta_E, eta_Gy, eta_Gz [Pa s], x_max_pred [m], v_n0 [m/s], mass [kg].
+
+        Engines' path: in ``msf`` k_p mode the self-consistent omega_x is
+        interpolated in eps = x_0/2R (``_scaling.EpsTable``, ~1e-6 relative)."""
+        return self._onset(v_n0, mass, exact=False)
+
+    def onset_reference(self, v_n0, mass):
+        """As :meth:`onset`, with every self-consistent root solved exactly."""
+        return self._onset(v_n0, mass, exact=True)
 
     def _omega_paper(self, v, m):
         """tau from (95) as printed, with k_x from (89); iterated for

@@ -127,7 +127,7 @@ def simulate_impact(
     J1, J2 = body1.J, body2.J
     R1, R2 = body1.radius, body2.radius
     inv_J2 = 0.0 if math.isinf(J2) else 1.0 / J2
-    onset = law.onset([vn0], [m])
+    onset = law.onset_reference([vn0], [m])
     o1 = {k: np.atleast_1d(v)[:1] for k, v in onset.items()}
     xs = float(law.hertz_scale(vn0, m))
     ts = xs / vn0
