@@ -53,13 +53,15 @@ def integrate_normal(
     x_scale: float,
     separation: str = "force-zero",
     n_samples: int = 0,
+    x_limit: float | None = None,
 ) -> NormalSolution:
     """Integrate from x = 0, x' = v0 > 0 until separation.
 
     force(x, xdot) -> F_n [N] (signed; clamped at 0 here in force-zero mode),
     indicator(x, xdot) -> B (sign of the force bracket), mass [kg], v0 [m/s],
     x_scale [m]: a length of the order of x_max (sets the tolerances and the
-    time horizon).
+    time horizon). x_limit [m]: the largest approach the law is defined for
+    (2R for the msf k_p of (15)); reaching it raises ValueError.
     """
     clamp = separation == "force-zero"
     t_scale = x_scale / v0
@@ -89,7 +91,13 @@ def integrate_normal(
     ev_force.terminal = True
     ev_force.direction = -1
 
+    def ev_limit(t, s):
+        return x_limit - s[0]
+
+    ev_limit.terminal = True
     events = [ev_turn, ev_overlap] + ([ev_force] if clamp else [])
+    if x_limit is not None:
+        events.append(ev_limit)
     t_end = 1e3 * t_scale
     sol = solve_ivp(
         rhs,
@@ -104,6 +112,11 @@ def integrate_normal(
     )
     if sol.status == -1:
         raise RuntimeError(f"normal impact integration failed: {sol.message}")
+    if x_limit is not None and len(sol.t_events[-1]):
+        raise ValueError(
+            f"the approach reached x = {x_limit:.6g} m = 2R before maximum compression: k_p = sqrt(2 - x/R) "
+            "of (15) has no real value beyond; the impact is outside the msf geometry (lower the speed)"
+        )
     t_turn = sol.t_events[0]
     if len(t_turn) == 0:
         raise RuntimeError("normal impact never reached maximum compression")
@@ -113,7 +126,7 @@ def integrate_normal(
     t_end_c = None
     v_end = None
     for k, name in ((1, "overlap-zero"), (2, "force-zero")):
-        if k < len(sol.t_events) and len(sol.t_events[k]):
+        if k < len(sol.t_events) and events[k] in (ev_overlap, ev_force) and len(sol.t_events[k]):
             tk = float(sol.t_events[k][0])
             if t_end_c is None or tk < t_end_c:
                 t_end_c, ended, v_end = tk, name, float(sol.y_events[k][0][1])

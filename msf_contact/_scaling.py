@@ -54,7 +54,7 @@ def unit_impact(gamma: float, eps: float, separation: str) -> UnitImpact:
     def ind(x, v):
         return x + gamma * v
 
-    s = integrate_normal(force, ind, 1.0, 1.0, 1.0, separation)
+    s = integrate_normal(force, ind, 1.0, 1.0, 1.0, separation, x_limit=(1.0 / eps) if eps else None)
     return UnitImpact(gamma, s.tau, s.tau1, s.x_max, s.cor, s.F_max)
 
 

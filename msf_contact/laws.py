@@ -163,7 +163,13 @@ class ForceLaw(abc.ABC):
             return float(self.separation_indicator(np.array([x]), np.array([v]), o)[0])
 
         xs = float(self.hertz_scale(v0, mass))
-        return integrate_normal(force, ind, mass, v0, xs, self.separation, n_samples)
+        return integrate_normal(force, ind, mass, v0, xs, self.separation, n_samples, x_limit=self.x_limit)
+
+    @property
+    def x_limit(self) -> float | None:
+        """Largest approach the law is defined for [m]: 2 min(R_a, R_b) with the
+        msf k_p of (15), else None."""
+        return 2.0 * min(self.geom.R_a, self.geom.R_b) if self.kp_mode == "msf" else None
 
     def _mindlin(self, x, n):
         """Hertz-Mindlin no-slip tangential stiffness 8 G a, a = sqrt(R x) [N/m] (n, 2)."""

@@ -172,7 +172,13 @@ def simulate_impact(
         return float(law.separation_indicator(np.array([max(y[0], 0.0)]), np.array([y[1]]), o1)[0])
 
     ev_force.terminal, ev_force.direction = True, -1
+    def ev_limit(t, y):
+        return law.x_limit - y[0]
+
+    ev_limit.terminal = True
     events = [ev_turn, ev_overlap] + ([ev_force] if law.separation == "force-zero" else [])
+    if law.x_limit is not None:
+        events.append(ev_limit)
     y0 = (0.0, vn0, 0.0, vt0, spin, 0.0, 0.0, 0.0, 0.0)
     Escale = m * speed**2
     atol = np.array([xs, vn0, xs * vscale / vn0, vscale, vscale / R1, vscale / R1, Escale, Escale, Escale]) * ATOL_SCALED
@@ -180,13 +186,16 @@ def simulate_impact(
                     events=events, dense_output=True, first_step=1e-6 * ts)
     if sol.status == -1:
         raise RuntimeError(f"impact integration failed: {sol.message}")
+    if law.x_limit is not None and len(sol.t_events[-1]):
+        raise ValueError(f"the approach reached 2R = {law.x_limit:.6g} m: k_p = sqrt(2 - x/R) of (15) has no "
+                         "real value beyond; the impact is outside the msf geometry (use a lower speed)")
     if len(sol.t_events[0]) == 0:
         raise RuntimeError("the impact never reached maximum compression")
     tau1 = float(sol.t_events[0][0])
     y_turn = sol.y_events[0][0]
     ends = [(float(sol.t_events[k][0]), name, sol.y_events[k][0])
             for k, name in ((1, "overlap-zero"), (2, "force-zero"))
-            if k < len(sol.t_events) and len(sol.t_events[k])]
+            if k < len(sol.t_events) and events[k] in (ev_overlap, ev_force) and len(sol.t_events[k])]
     if ends:
         tau, ended_by, y_end = min(ends, key=lambda e: e[0])
     else:
@@ -233,6 +242,11 @@ def simulate_impact(
     KE_t_in = 0.5 * m * vt0**2 + 0.5 * J1 * spin**2
     KE_t_out = 0.5 * m * float(vt_end) ** 2 + 0.5 * J1 * float(w1_end) ** 2 + J2_term
     tol = 1e-9 * Escale
+    if KE_t_out > KE_t_in + tol:
+        outside.append(
+            "tangential and rotational energy grew: the paper tangential mode (49) drives the spin "
+            "by the torque without feeding it back into the tangential force"
+            if paper else "tangential and rotational energy grew: numerical or model error")
     if 0.5 * m * v_out_n**2 > 0.5 * m * vn0**2 + tol:
         warnings.warn("normal energy increased in the impact: numerical or model error", ValidityWarning, stacklevel=2)
 
