@@ -360,20 +360,30 @@ def build_impact(args) -> ImpactSetup:
                        args.strict, args)
 
 
+#: Elastic work of the msf normal force (43) from x = 0 to x = 2R, in units of
+#: E' R^3: (4/3) int_0^2 sqrt(2 - s) s^(3/2) ds = (4/3)(pi/2) = 2 pi/3.
+MSF_WORK_TO_2R = 2.0 * math.pi / 3.0
+
+
 def check_x_max(law: ForceLaw, mass: float, v_n: float) -> None:
-    """Refuse, before solving, an msf-mode impact whose elastic Hertz estimate
-    of x_max reaches 2R: k_p = sqrt(2 - x/R) of (15) has no real value there.
-    The estimate is not a bound for every case (between 2.09 and 3.02 E' R^3
-    of kinetic energy the msf law can reach 2R while it does not); the
-    reference solver checks the solved x_max again."""
+    """Refuse, before solving, an impact whose approach can reach 2R in msf
+    k_p mode, where k_p = sqrt(2 - x/R) of (15) has no real value.
+
+    The test is the elastic msf law's own x_max, an upper bound of the
+    viscoelastic x_max (the viscous force resists compression): it reaches 2R
+    when m V_n^2/2 >= (2 pi/3) E' R^3. (The elastic Hertz x_max with k_p = 1
+    is not a bound: it stays below 2R up to (8/15) 2^(5/2) = 3.02 E' R^3.)
+    """
     if law.kp_mode != "msf":
         return
     R = law.geom.R
-    x_h = float(cf.hertz_x_max(mass, v_n, law.moduli.E, R))
-    if x_h >= 2.0 * R:
+    kinetic = 0.5 * mass * v_n**2
+    capacity = MSF_WORK_TO_2R * law.moduli.E * R**3
+    if kinetic >= capacity:
         raise ValueError(
-            f"x_max (elastic Hertz estimate) = {x_h:.6g} m >= 2R = {2 * R:.6g} m at normal speed "
-            f"{v_n:.6g} m/s: outside the msf k_p = sqrt(2 - x/R) of (15); lower --speed or use --kp-mode hertz"
+            f"x_max >= 2R = {2 * R:.6g} m: the normal kinetic energy m V_n^2/2 = {kinetic:.6g} J (V_n = {v_n:.6g} m/s) "
+            f"is >= {capacity:.6g} J = (2 pi/3) E' R^3, the elastic work of (43) up to x = 2R, so the approach "
+            "can reach 2R where k_p = sqrt(2 - x/R) of (15) has no real value; lower --speed or use --kp-mode hertz"
         )
 
 

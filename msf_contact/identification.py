@@ -153,7 +153,7 @@ def identify_printed(meas: ImpactMeasurement, kp_mode: str = "msf", strict: bool
     tan_delta = float(cf.tan_delta_88(k))
     if k < COR_MIN:
         check_tan_delta(
-            f"tg(beta) of (88) for cor = {k!r} < (pi-1)/(pi+1) = {COR_MIN:.9f}", tan_delta, strict=strict
+            f"tg(beta) of (88) at cor = {k!r} (below (pi-1)/(pi+1) = {COR_MIN:.9f})", tan_delta, strict=strict
         )
     k_p = _kp_guess(kp_mode)
     for _ in range(100):
