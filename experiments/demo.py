@@ -53,7 +53,8 @@ def comparison_rows(speeds=SPEEDS, progress=None):
         rows.append(dict(source="MSF closed forms, (95) consistent", speed=V, cor=k89,
                          tau=float(cf.tau_95(m, V, mod.E, R, kp, k89)),
                          x_max=float(cf.x_max_90(m, V, mod.E, mod.tan_delta, R, kp)), F_max=None))
-        A = float(cf.brilliantov_A_99(mod.tan_delta, pair.body1.nu, 1.0, ref.tau))
+        # A that makes the Kuwabara-Kono viscous term equal MSF's (47) at this omega_x
+        A = float(cf.kuwabara_kono_A_equivalent(mod.tan_delta, ref.omega_x))
         for name, kw in (("hertz", {}), ("kuwabara-kono", {"A": A}), ("hunt-crossley", {"cor": ref.cor_n}),
                          ("spring-dashpot", {})):
             r = simulate_impact(make_law(name, pair, curv, **kw), ball, plate, V)
