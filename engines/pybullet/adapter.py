@@ -31,6 +31,7 @@ second step on).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -43,6 +44,12 @@ from engines.base import ContactKinematics, EngineAdapter, PairSpec
 #: the distance the surfaces can close in one step: a safety factor 2 on the
 #: constant-acceleration prediction, since a_ext is an estimate.
 CANDIDATE_FACTOR = 2.0
+#: A law's curvature and the shapes' radii must agree to this relative
+#: tolerance (a law built for another ball would give wrong forces silently).
+RADIUS_RTOL = 1e-9
+#: A tangential velocity below this share of the relative speed gives no
+#: incidence direction (a normal impact: cor_t is None).
+TANGENT_FLOOR = 1e-9
 
 _SHAPE_NAMES = {pb.GEOM_SPHERE: "sphere", pb.GEOM_BOX: "box", pb.GEOM_CAPSULE: "capsule",
                 pb.GEOM_CYLINDER: "cylinder", pb.GEOM_PLANE: "plane", pb.GEOM_MESH: "mesh"}
@@ -113,6 +120,7 @@ class PybulletAdapter(EngineAdapter):
                                  "sphere-sphere, sphere-plane, sphere-box face")
             if self._fixed(b1) and self._fixed(b2):
                 raise ValueError(f"pairs[{i}]: both {b1} and {b2} are fixed (mass 0)")
+            _check_curvature(i, p, s1, s2)
             self._bodies.append((b1, b2))
             self._shapes.append((s1, s2))
         super().__init__(pairs)
@@ -126,6 +134,8 @@ class PybulletAdapter(EngineAdapter):
         self.impulse = np.zeros((n, 3))
         self._steps = 0
         self._closed = False
+        self._onset: list[dict | None] = [None] * n  # incidence snapshot per pair, for the records
+        self._n_records = 0
 
     # -- validation ---------------------------------------------------------
     def _check_body(self, b, label):
@@ -348,6 +358,8 @@ class PybulletAdapter(EngineAdapter):
                 W, Wc = self._inverse_inertia(i, poses, point)
                 W_of[i] = W
                 cand.append((i, x, nrm, point, v_rel, v_com_rel, W, Wc, a_ext))
+                if self._onset[i] is None:
+                    self._onset[i] = {"n": nrm, "v_com": v_com_rel, "v_rel": v_rel, "w1": poses[0].w}
             self._last_v_rel[i] = v_rel
             self._last_dv_own[i] = 0.0
             self._have_last[i] = True
@@ -379,6 +391,48 @@ class PybulletAdapter(EngineAdapter):
                 self.impulse[i] += F * dt
         pb.stepSimulation(physicsClientId=c)
         self._steps += 1
+        self._finish_records()
+
+    # -- records ----------------------------------------------------------------
+    def _finish_records(self) -> None:
+        """Fill the engine-side fields of the records finished in this step
+        (the velocities are now those after the step): cor_t from the relative
+        centre-of-mass tangential velocity, spin_in and spin_out of body 1
+        about n x t (t: the incidence direction)."""
+        recs = self.manager.records
+        if len(recs) < self._n_records:  # popped by the caller
+            self._n_records = 0
+        for k in range(self._n_records, len(recs)):
+            recs[k] = self._complete(recs[k])
+        self._n_records = len(recs)
+
+    def _complete(self, rec):
+        i = int(rec.inputs.get("pair", 0)) if isinstance(rec.inputs, dict) else 0
+        b1, b2 = self._bodies[i]
+        on = self._onset[i] or {"n": np.array([0.0, 0.0, 1.0]), "v_com": np.zeros(3), "v_rel": np.zeros(3),
+                                "w1": np.zeros(3)}
+        n = on["n"]
+        v_in = on["v_com"]
+        vt_in = v_in - (v_in @ n) * n
+        scale = max(float(np.linalg.norm(v_in)), 1e-300)
+        if np.linalg.norm(vt_in) > TANGENT_FLOOR * scale:
+            t = vt_in / np.linalg.norm(vt_in)
+        else:
+            u = on["v_rel"] - (on["v_rel"] @ n) * n
+            t = u / np.linalg.norm(u) if np.linalg.norm(u) > TANGENT_FLOOR * scale else None
+        p1, p2 = self._pose(b1), self._pose(b2)
+        v_out = p1.v - p2.v
+        fields = {"engine": self.name, "dt": self._dt}
+        if t is not None:
+            axis = np.cross(n, t)
+            fields["spin_in"] = float(on["w1"] @ axis)
+            fields["spin_out"] = float(p1.w @ axis)
+            vt0 = float(v_in @ t)
+            fields["cor_t"] = float(v_out @ t) / vt0 if abs(vt0) > TANGENT_FLOOR * scale else None
+        else:
+            fields["spin_in"], fields["spin_out"], fields["cor_t"] = 0.0, 0.0, None
+        self._onset[i] = None
+        return dataclasses.replace(rec, **fields)
 
     @property
     def time(self) -> float:
@@ -388,6 +442,20 @@ class PybulletAdapter(EngineAdapter):
     def body_state(self, b) -> _Pose:
         """World pose and velocities of a (body, link) [SI]."""
         return self._pose(b)
+
+
+def _check_curvature(i, p: PairSpec, s1: _Shape, s2: _Shape) -> None:
+    """The law's radii must be the shapes' (body 1's radii are R1a, R1b)."""
+    R1 = float(s1.size[0]) if s1.kind == "sphere" else math.inf
+    R2 = float(s2.size[0]) if s2.kind == "sphere" else math.inf
+    curv = p.law.curvature
+    for label, want, got in (("R1a", R1, curv.R1a), ("R1b", R1, curv.R1b),
+                             ("R2a", R2, curv.R2a), ("R2b", R2, curv.R2b)):
+        same = (math.isinf(want) and math.isinf(got)) or (
+            math.isfinite(want) and math.isfinite(got) and abs(got - want) <= RADIUS_RTOL * want)
+        if not same:
+            raise ValueError(f"pairs[{i}]: the law's curvature {label} = {got!r} m does not match the collision "
+                             f"shape's radius {want!r} m of {p.body1 if label[1] == '1' else p.body2}")
 
 
 def _sphere_box_face(c, r, cb, Rb, half, i):
