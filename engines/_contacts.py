@@ -1,0 +1,796 @@
+"""Engine-agnostic contact management: per-contact state, sub-cycling, records.
+
+An adapter calls :meth:`ContactManager.step` once per engine step with the
+kinematics of its candidate contacts (:class:`engines.base.ContactKinematics`)
+and applies the returned step-averaged forces (spec section 6).
+
+Sub-cycling. A contact lasting fewer than ~50 engine steps cannot be resolved
+by an explicit force, so every candidate contact is integrated here over the
+engine step [t, t + dt] with the inverse effective inertia W at the contact
+(frozen over the step):
+
+    x'  = -(v . n)                                   approach rate
+    v'  = W f + a_ext,      f = F_n n + F_t           relative contact-point velocity
+    s'  = v_t  (contact-point mode)  or  v_com,t  (paper mode; v_com' = W_com f + a_ext)
+
+with F_n = law.contact_normal_force(x, x', onset) and F_t from
+law.tangential_force in a tangent basis (t1, t2) of n. Classical RK4 with
+an internal step h <= tau_est / (4 STEPS_PER_CONTACT_MIN). The step is split
+exactly where the contact begins (x crosses 0 with closing speed; free
+motion before it is solved in closed form), at maximum compression (x' = 0,
+for tau1, x_max and the split of the works) and where it ends (force-zero:
+the separation indicator B < 0 in restitution; or x returns to 0), by
+root finding on a partial RK4 step from the substep's start (as accurate as a
+full step). After a separation the free relative motion continues for the
+rest of the step and a new contact may begin (micro-bounces). The engine
+gets the impulse P = int f dt of the step as the force P/dt at the contact
+point; with the engine's semi-implicit Euler this reproduces the internal
+velocity at the end of the step exactly (W and a_ext constant over the step).
+
+Authority. While a contact lasts, its approach x is advanced here and the
+engine's x is not used (the engine's position lags the internal one by
+O(v dt) when a step-averaged force is applied); only v, n, W, a_ext are
+read from the engine at each step start. The tangential displacement s is
+kept as a world vector in the contact plane, re-projected onto the current
+tangent plane each step and rescaled to its length (DEM practice).
+
+Resting contacts. A contact that lasts longer than SETTLE_AFTER_DURATIONS
+contact durations is a resting (or rolling) contact: the engine's position
+offset accumulated by the step-averaged force would then stay for ever, so
+its internal x is relaxed toward the engine's x by ``settle_rate`` per step;
+the engine body then rests at the static overlap. Onset speeds below
+``v_floor`` (see :func:`onset_speed_floor`) are raised to it for the
+onset constants only (omega_x, Hunt-Crossley chi, ...): a contact that
+begins at a vanishing closing speed would otherwise get a vanishing omega_x
+and an unbounded damping E''/omega_x.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Callable
+
+import numpy as np
+
+from msf_contact import closed_forms as cf
+from msf_contact.geometry import area
+from msf_contact.laws import ForceLaw
+from msf_contact.record import ImpactRecord
+
+from .base import STEPS_PER_CONTACT_MIN, ContactForces, ContactKinematics, PairSpec, as_array
+
+TANGENTIAL_MODES = ("contact-point", "paper")
+
+#: Internal RK4 steps per contact duration: 4 x 50. RK4 converges as h^4
+#: (h^1.5 over the first substep, where F ~ t^(1/2) for MSF): at 200 steps
+#: per duration the COR error is ~1e-6, far below the 0.02% acceptance.
+SUBSTEPS_PER_CONTACT = 4 * STEPS_PER_CONTACT_MIN
+#: Smallest onset speed used for the onset constants [m/s], with no external
+#: acceleration along the normal (with one, the floor is sqrt(2 a_n x_static)).
+V_ONSET_MIN = 1e-6
+#: A contact older than this many estimated durations is resting/rolling
+#: (an impact lasts one); only then is its x relaxed toward the engine's.
+SETTLE_AFTER_DURATIONS = 3.0
+#: Default share of the engine-internal offset of x removed per step for a
+#: resting contact (10%: the offset decays over ~20 steps, slowly against
+#: the contact's own oscillation, so it adds no visible dynamics).
+SETTLE_RATE = 0.1
+#: f = |F_t|/F_n is tracked while F_n >= this share of the running peak F_n
+#: (the reference solver uses 1% of the final peak: F_RATIO_FLOOR).
+F_RATIO_FLOOR = 0.01
+#: Root finding on a substep: iterations and tolerance in substep fractions.
+ROOT_ITER = 60
+ROOT_TOL = 1e-13
+#: Guard on the number of onset/separation segments inside one engine step.
+MAX_SEGMENTS = 10000
+
+# layout of the internal state vector y (k, NY)
+_X, _V, _S, _VC, _P = 0, slice(1, 4), slice(4, 7), slice(7, 10), slice(10, 13)
+_WEL, _WVI, _Q, _WT = 13, 14, 15, 16
+NY = 17
+
+
+def effective_inverse_inertia_free(m1, I1_world, r1, m2, I2_world, r2) -> np.ndarray:
+    """Inverse effective inertia [1/kg] at a contact point between two free rigid bodies.
+
+    W = sum_i [ (1/m_i) Id - [r_i]x I_i^-1 [r_i]x ]: the change of the relative
+    contact-point velocity per unit impulse +P on body 1 and -P on body 2.
+    m_i [kg] (inf: fixed body, contributes nothing); I_i_world [kg m^2] (3, 3)
+    inertia about the centre of mass in world axes (None or inf: no rotation);
+    r_i [m] (3,) from the body's centre of mass to the contact point.
+    Broadcasts over a leading batch dimension: (n, 3, 3) for (n,) inputs.
+    """
+    W = np.zeros(np.broadcast_shapes(np.shape(r1), np.shape(r2))[:-1] + (3, 3))
+    for name, m, I, r in (("body 1", m1, I1_world, r1), ("body 2", m2, I2_world, r2)):
+        m = np.asarray(m, dtype=float)
+        if np.any(np.isnan(m)) or np.any(m <= 0):
+            raise ValueError(f"{name} mass = {m!r} kg must be > 0 (inf for a fixed body)")
+        if np.all(np.isinf(m)):
+            continue
+        if np.any(np.isinf(m)):
+            raise ValueError(f"{name} mass mixes fixed (inf) and free bodies in one batch; call per group")
+        inv_m = 1.0 / m
+        W = W + inv_m[..., None, None] * np.eye(3)
+        if I is None or np.all(np.isinf(np.asarray(I, dtype=float))):
+            continue
+        r = np.asarray(r, dtype=float)
+        rx = _skew(r)
+        Iinv = np.linalg.inv(np.asarray(I, dtype=float))
+        W = W - rx @ Iinv @ rx
+    return W
+
+
+def _skew(r):
+    r = np.asarray(r, dtype=float)
+    z = np.zeros(r.shape[:-1])
+    return np.stack([np.stack([z, -r[..., 2], r[..., 1]], -1),
+                     np.stack([r[..., 2], z, -r[..., 0]], -1),
+                     np.stack([-r[..., 1], r[..., 0], z], -1)], -2)
+
+
+def closing_distance(xdot, xddot, dt: float, safety: float = 2.0) -> np.ndarray:
+    """How far a gap can close within one step [m] (n,): safety (x' dt + x'' dt^2/2)
+    for closing rate x' [m/s] and acceleration x'' [m/s^2] (both positive closing).
+    An adapter lists a pair as a candidate when x > -closing_distance."""
+    xd = np.maximum(np.asarray(xdot, dtype=float), 0.0)
+    xdd = np.maximum(np.asarray(xddot, dtype=float), 0.0)
+    return safety * (xd * dt + 0.5 * xdd * dt * dt)
+
+
+def onset_speed_floor(law: ForceLaw, m_eff, a_n) -> np.ndarray:
+    """Smallest onset speed used for the onset constants [m/s] (n,).
+
+    sqrt(2 a_n x_s): the speed gained falling through the static overlap x_s,
+    where the elastic force 2/3 E' psi(0) x_s^(3/2) of (29) balances m a_n
+    (a_n: external closing acceleration along the normal); at least
+    V_ONSET_MIN. A contact that begins slower is settling under a_n: its
+    damping is then that of a contact at this speed, not an unbounded one.
+    """
+    m = np.asarray(m_eff, dtype=float)
+    a = np.maximum(np.asarray(a_n, dtype=float), 0.0)
+    K = 2.0 / 3.0 * law.moduli.E * float(law.psi(np.zeros(1))[0])
+    x_s = (m * a / K) ** (2.0 / 3.0)
+    return np.maximum(np.sqrt(2.0 * a * x_s), V_ONSET_MIN)
+
+
+def _tangent_basis(n):
+    """Orthonormal t1, t2 (k, 3) with t1 x t2 = n."""
+    e = np.where((np.abs(n[:, 0]) < 0.9)[:, None], np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    t1 = e - np.einsum("ij,ij->i", e, n)[:, None] * n
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    return t1, np.cross(n, t1)
+
+
+def _dot(a, b):
+    return np.einsum("ij,ij->i", a, b)
+
+
+@dataclass
+class _Batch:
+    """Constants of k contact rows of one law over one engine step."""
+
+    law: ForceLaw
+    n: np.ndarray  # (k, 3)
+    t1: np.ndarray  # (k, 3)
+    t2: np.ndarray  # (k, 3)
+    W: np.ndarray  # (k, 3, 3)
+    Wc: np.ndarray  # (k, 3, 3)
+    a: np.ndarray  # (k, 3)
+    paper: np.ndarray  # (k,) bool
+    onset: dict = field(default_factory=dict)  # key -> (k,)
+
+    def sub(self, idx) -> "_Batch":
+        return _Batch(self.law, self.n[idx], self.t1[idx], self.t2[idx], self.W[idx], self.Wc[idx],
+                      self.a[idx], self.paper[idx], {k: v[idx] for k, v in self.onset.items()})
+
+    def rhs(self, y):
+        """dy/dt (k, NY), F_n (k,), |F_t| (k,)."""
+        law, n = self.law, self.n
+        x = np.maximum(y[:, _X], 0.0)
+        v, vc = y[:, _V], y[:, _VC]
+        xd = -_dot(v, n)
+        Fn = law.contact_normal_force(x, xd, self.onset)
+        Fc = law.normal_force(x, np.zeros_like(xd), self.onset)
+        vt = v + xd[:, None] * n
+        sd = np.where(self.paper[:, None], vc - _dot(vc, n)[:, None] * n, vt)
+        s = y[:, _S]
+        s2 = np.stack([_dot(s, self.t1), _dot(s, self.t2)], -1)
+        sd2 = np.stack([_dot(sd, self.t1), _dot(sd, self.t2)], -1)
+        Ft2, _ = law.tangential_force(x, s2, sd2, self.onset, Fn)
+        _, b = law.tangential_stiffness(x, self.onset)
+        Ft = Ft2[:, :1] * self.t1 + Ft2[:, 1:] * self.t2
+        f = Fn[:, None] * n + Ft
+        dy = np.empty_like(y)
+        dy[:, _X] = xd
+        dy[:, _V] = np.einsum("kij,kj->ki", self.W, f) + self.a
+        dy[:, _S] = sd
+        dy[:, _VC] = np.einsum("kij,kj->ki", self.Wc, f) + self.a
+        dy[:, _P] = f
+        dy[:, _WEL] = Fc * xd
+        dy[:, _WVI] = (Fn - Fc) * xd
+        dy[:, _Q] = np.sum(b * sd2 * sd2, axis=1)
+        dy[:, _WT] = -_dot(Ft, vt)
+        return dy, Fn, np.hypot(Ft2[:, 0], Ft2[:, 1])
+
+    def rk4(self, y, h):
+        """One RK4 step of lengths h (k,). Returns (y_new, F_n at y, |F_t| at y)."""
+        hh = h[:, None]
+        k1, Fn, Ft = self.rhs(y)
+        k2, _, _ = self.rhs(y + 0.5 * hh * k1)
+        k3, _, _ = self.rhs(y + 0.5 * hh * k2)
+        k4, _, _ = self.rhs(y + hh * k3)
+        return y + hh / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4), Fn, Ft
+
+    def xdot(self, y):
+        return -_dot(y[:, _V], self.n)
+
+    def indicator(self, y):
+        x = np.maximum(y[:, _X], 0.0)
+        return self.law.separation_indicator(x, self.xdot(y), self.onset)
+
+
+def _find_root(g, lo, hi, g_lo, g_hi):
+    """Vectorised Illinois regula falsi on [lo, hi] (k,) with g(lo) > 0 >= g(hi).
+    g(theta (k,)) -> (k,). Returns theta (k,)."""
+    lo, hi, g_lo, g_hi = lo.copy(), hi.copy(), g_lo.copy(), g_hi.copy()
+    side = np.zeros(lo.shape, int)
+    for _ in range(ROOT_ITER):
+        if np.all(hi - lo <= ROOT_TOL):
+            break
+        den = g_lo - g_hi
+        th = np.where(den > 0, lo + g_lo * (hi - lo) / np.where(den > 0, den, 1.0), 0.5 * (lo + hi))
+        # fall back to bisection when the secant stalls at an end
+        stalled = (th <= lo) | (th >= hi)
+        th = np.where(stalled, 0.5 * (lo + hi), th)
+        gt = g(th)
+        pos = gt > 0
+        # Illinois: halve the value at the end that stays
+        g_hi = np.where(pos & (side == 1), 0.5 * g_hi, g_hi)
+        g_lo = np.where(~pos & (side == -1), 0.5 * g_lo, g_lo)
+        lo, g_lo = np.where(pos, th, lo), np.where(pos, gt, g_lo)
+        hi, g_hi = np.where(pos, hi, th), np.where(pos, g_hi, gt)
+        side = np.where(pos, 1, -1)
+    return hi
+
+
+class ContactManager:
+    """Per-contact state, sub-cycled integration and impact records for the
+    pairs of one adapter (see the module docstring).
+
+    pairs: the adapter's PairSpecs (one contact per pair: smooth convex
+    shapes touch at one point). dt: the engine step [s]. engine: name written
+    into the records. settle_rate: share of the engine-internal offset of x
+    removed per step in a resting contact (0 disables).
+
+    Adapter hooks (optional, :meth:`set_body_probe`): a function
+    ``probe(pair_index) -> dict`` returning body-level quantities, read at
+    onset and when a finished contact's record is completed (at the next
+    :meth:`step`, or when ``records``/``pop_records`` are read, i.e. after
+    the engine applied the contact's last impulse). Key ``"omega1"``: body
+    1's angular velocity in world axes [rad/s] (3,), gives spin_in/spin_out
+    about n x t (t the incident tangential direction; rolling in the
+    direction of incidence is positive, as in the reference solver); other
+    keys are stored in ``record.inputs["body_in"]`` / ``["body_out"]``.
+    """
+
+    def __init__(self, pairs: list[PairSpec], dt: float, engine: str, *, settle_rate: float = SETTLE_RATE):
+        if not pairs:
+            raise ValueError("pairs is empty: give at least one PairSpec")
+        dt = float(dt)
+        if not math.isfinite(dt) or dt <= 0:
+            raise ValueError(f"dt = {dt!r} s must be finite and > 0")
+        if not 0.0 <= settle_rate <= 1.0:
+            raise ValueError(f"settle_rate = {settle_rate!r} must be in [0, 1]")
+        for i, p in enumerate(pairs):
+            if not isinstance(p.law, ForceLaw):
+                raise ValueError(f"pairs[{i}].law = {p.law!r} is not a msf_contact ForceLaw")
+            if p.tangential not in TANGENTIAL_MODES:
+                raise ValueError(f"pairs[{i}].tangential = {p.tangential!r} is not one of {TANGENTIAL_MODES}")
+        self.pairs = list(pairs)
+        self.dt = dt
+        self.engine = str(engine)
+        self.settle_rate = float(settle_rate)
+        P = len(pairs)
+        self._paper = np.array([p.tangential == "paper" for p in pairs])
+        # group pairs by law object (vectorised per law)
+        self._groups: dict[int, ForceLaw] = {}
+        self._group_of = np.empty(P, int)
+        self._pos = np.empty(P, int)  # position of a pair inside its group's onset arrays
+        sizes: dict[int, int] = {}
+        for i, p in enumerate(pairs):
+            g = id(p.law)
+            self._groups.setdefault(g, p.law)
+            self._group_of[i] = g
+            self._pos[i] = sizes.get(g, 0)
+            sizes[g] = self._pos[i] + 1
+        self._group_size = sizes
+        self._onset: dict[int, dict[str, np.ndarray]] = {g: {} for g in self._groups}
+        self._probe: Callable[[int], dict] | None = None
+        self._init_state(P)
+        self.records: list[ImpactRecord] = []
+        self._pending: list[tuple[int, ImpactRecord, np.ndarray]] = []
+        self.last_step_info: dict[str, Any] = {}
+
+    # ------------------------------------------------------------ state --
+    def _init_state(self, P):
+        z, z3 = np.zeros(P), np.zeros((P, 3))
+        self.active = np.zeros(P, bool)  #: in contact (P,)
+        self.x = z.copy()  #: internal approach [m] (P,)
+        self.xdot = z.copy()  #: approach rate at the end of the last step [m/s] (P,)
+        self.s = z3.copy()  #: tangential displacement, world, in the contact plane [m] (P, 3)
+        self.phase = np.zeros(P, np.int8)  #: 0 compression (x' > 0), 1 restitution
+        self.turned = np.zeros(P, bool)  #: maximum compression passed at least once
+        self.t_onset = z.copy()  #: onset time [s]
+        self.v_n_in = z.copy()  #: closing speed at onset [m/s]
+        self.v_n_used = z.copy()  #: onset speed given to law.onset (>= floor) [m/s]
+        self.m_eff = z.copy()  #: 1/(n W n) at onset [kg]
+        self.tau_est = z.copy()  #: estimated duration [s]
+        self.h = z.copy()  #: internal step [s]
+        self.n_in = z3.copy()  #: normal at onset (P, 3)
+        self.u_in = z3.copy()  #: contact-point tangential velocity at onset [m/s] (P, 3)
+        self.vc_in = z3.copy()  #: centre-of-mass relative tangential velocity at onset [m/s] (P, 3)
+        self.vc = z3.copy()  #: centre-of-mass relative velocity at the end of the last step [m/s] (P, 3)
+        self.x_max = z.copy()  #: maximum approach so far [m]
+        self.x_turn = z.copy()  #: approach at the first maximum compression [m]
+        self.tau1 = z.copy()  #: compression time [s]
+        self.F_max = z.copy()  #: peak normal force [N]
+        self.x_at_F = z.copy()  #: approach at the peak force [m]
+        self.f_min = np.full(P, np.inf)  #: min |F_t|/F_n [-]
+        self.f_max = z.copy()  #: max |F_t|/F_n [-]
+        self.W_el = z.copy()  #: work of the elastic normal force so far [J]
+        self.W_visc = z.copy()  #: work of the viscous normal force so far [J]
+        self.W_el_comp = z.copy()
+        self.W_visc_comp = z.copy()
+        self.Q_t = z.copy()  #: tangential viscous work (80) [J]
+        self.W_t = z.copy()  #: work done against the tangential force [J]
+        self.outside = np.zeros(P, bool)
+        self.body_in: list[dict | None] = [None] * P
+
+    @property
+    def active_count(self) -> int:
+        return int(np.count_nonzero(self.active))
+
+    @property
+    def active_pairs(self) -> np.ndarray:
+        """Pair indices in contact: an adapter must list them as candidates every step."""
+        return np.flatnonzero(self.active)
+
+    def set_body_probe(self, probe: Callable[[int], dict] | None) -> None:
+        """Install the adapter's body-level probe (see the class docstring)."""
+        if probe is not None and not callable(probe):
+            raise ValueError(f"probe = {probe!r} must be callable or None")
+        self._probe = probe
+
+    def state(self, pair_index: int) -> dict | None:
+        """Current state of the pair's contact, or None when not in contact."""
+        p = int(pair_index)
+        if not 0 <= p < len(self.pairs):
+            raise ValueError(f"pair_index = {pair_index!r} is outside [0, {len(self.pairs) - 1}]")
+        if not self.active[p]:
+            return None
+        g = self._group_of[p]
+        onset = {k: float(v[self._pos[p]]) for k, v in self._onset[g].items()}
+        return {
+            "x": float(self.x[p]), "xdot": float(self.xdot[p]), "s": self.s[p].copy(),
+            "phase": "restitution" if self.phase[p] else "compression",
+            "x_max": float(self.x_max[p]), "F_max": float(self.F_max[p]), "t_onset": float(self.t_onset[p]),
+            "v_n_in": float(self.v_n_in[p]), "v_n_used": float(self.v_n_used[p]),
+            "v_t_in": float(np.linalg.norm(self.u_in[p])), "m_eff": float(self.m_eff[p]),
+            "omega_x": onset.get("omega_x"), "omega_y": onset.get("omega_y"), "onset": onset,
+            "tau_est": float(self.tau_est[p]), "h": float(self.h[p]),
+            "W_el": float(self.W_el[p]), "W_visc": float(self.W_visc[p]), "Q_t": float(self.Q_t[p]),
+        }
+
+    def pop_records(self) -> list[ImpactRecord]:
+        """Finished impacts since the last call, and forget them."""
+        self._finish_pending()
+        out, self.records = self.records, []
+        return out
+
+    def finished(self) -> list[ImpactRecord]:
+        """All finished impacts kept so far (completes pending ones)."""
+        self._finish_pending()
+        return self.records
+
+    # ------------------------------------------------------------- step --
+    def step(self, kin: ContactKinematics) -> ContactForces:
+        """Integrate the candidate contacts over one engine step; return the
+        step-averaged forces on body 1 at the contact points."""
+        self._finish_pending()
+        pair = np.asarray(kin.pair, dtype=int).reshape(-1)
+        k = pair.shape[0]
+        x = as_array(kin.x, ()).reshape(-1)
+        n = as_array(kin.normal, (3,))
+        point = as_array(kin.point, (3,))
+        v = as_array(kin.v_rel, (3,))
+        vc = as_array(kin.v_com_rel, (3,))
+        W = as_array(kin.W, (3, 3))
+        Wc = as_array(kin.W_com, (3, 3))
+        a = as_array(kin.a_ext, (3,))
+        for name, arr in (("x", x), ("normal", n), ("point", point), ("v_rel", v), ("v_com_rel", vc),
+                          ("W", W), ("W_com", Wc), ("a_ext", a)):
+            if arr.shape[0] != k:
+                raise ValueError(f"kinematics.{name} has {arr.shape[0]} rows; expected {k} (len(pair))")
+            if not np.all(np.isfinite(arr)):
+                raise ValueError(f"kinematics.{name} is not finite: {arr!r}")
+        if k and (pair.min() < 0 or pair.max() >= len(self.pairs)):
+            raise ValueError(f"kinematics.pair = {pair!r} has indices outside [0, {len(self.pairs) - 1}]")
+        if len(np.unique(pair)) != k:
+            raise ValueError(f"kinematics.pair = {pair!r} lists a pair twice (one contact per pair)")
+        nn = np.linalg.norm(n, axis=1)
+        if np.any(np.abs(nn - 1.0) > 1e-6):
+            raise ValueError(f"kinematics.normal must be unit vectors, norms {nn!r}")
+        n = n / nn[:, None] if k else n
+        t0 = float(kin.t)
+        # contacts the adapter did not list: lost (cannot be integrated)
+        listed = np.zeros(len(self.pairs), bool)
+        listed[pair] = True
+        for p in np.flatnonzero(self.active & ~listed):
+            self._end_lost(int(p), t0)
+        force = np.zeros((k, 3))
+        info = {"rows": k, "substeps": 0, "segments": 0, "onsets": 0, "ends": 0}
+        for g, law in self._groups.items():
+            rows = np.flatnonzero(self._group_of[pair] == g)
+            if rows.size == 0:
+                continue
+            P = self._step_group(g, law, pair[rows], x[rows], n[rows], v[rows], vc[rows], W[rows], Wc[rows],
+                                 a[rows], t0, info)
+            force[rows] = P / self.dt
+        self.last_step_info = info
+        return ContactForces(force=force, point=point.copy(), pair=pair.copy())
+
+    # ---------------------------------------------------- one law group --
+    def _step_group(self, g, law, p, x_eng, n, v, vc, W, Wc, a, t0, info):
+        dt = self.dt
+        k = p.shape[0]
+        t1, t2 = _tangent_basis(n)
+        batch = _Batch(law, n, t1, t2, W, Wc, a, self._paper[p])
+        act = self.active[p].copy()
+        y = np.zeros((k, NY))
+        # internal x for contacts in progress (relaxed toward the engine's when resting)
+        x0 = np.where(act, self.x[p], x_eng)
+        settle = act & ((t0 - self.t_onset[p]) > SETTLE_AFTER_DURATIONS * self.tau_est[p])
+        x0 = np.where(settle, x0 + self.settle_rate * (x_eng - x0), x0)
+        y[:, _X] = x0
+        y[:, _V] = v
+        y[:, _VC] = vc
+        # tangential displacement: onto the current tangent plane, same length
+        s = self.s[p]
+        s_t = s - _dot(s, n)[:, None] * n
+        ls, lt = np.linalg.norm(s, axis=1), np.linalg.norm(s_t, axis=1)
+        y[:, _S] = np.where((lt > 0)[:, None], s_t * (ls / np.where(lt > 0, lt, 1.0))[:, None], 0.0)
+        y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT] = self.W_el[p], self.W_visc[p], self.Q_t[p], self.W_t[p]
+        onset = self._onset[g]
+        if onset:
+            batch.onset = {key: arr[self._pos[p]] for key, arr in onset.items()}
+        t_loc = np.zeros(k)
+        in_c = act
+        for _ in range(MAX_SEGMENTS):
+            info["segments"] += 1
+            rem = dt - t_loc
+            free = ~in_c & (rem > 0)
+            if np.any(free):
+                fi = np.flatnonzero(free)
+                tc = self._free_flight(y, fi, batch, rem[fi])
+                t_loc[fi] = np.where(np.isfinite(tc), t_loc[fi] + tc, dt)
+                new = fi[np.isfinite(tc)]
+                if new.size:
+                    self._begin(g, law, p, new, y, batch, t0 + t_loc[new])
+                    in_c[new] = True
+                    info["onsets"] += int(new.size)
+            rem = dt - t_loc
+            ci = np.flatnonzero(in_c & (rem > 0))
+            if ci.size == 0:
+                break
+            ended = self._integrate(g, law, p, ci, y, batch, t_loc, t0, info)
+            in_c[ended] = False
+        else:
+            raise RuntimeError(f"more than {MAX_SEGMENTS} contact onsets/separations in one step of {dt!r} s")
+        # write back
+        self.active[p] = in_c
+        self.x[p] = y[:, _X]
+        self.xdot[p] = batch.xdot(y)
+        self.s[p] = y[:, _S]
+        self.vc[p] = y[:, _VC]
+        self.W_el[p], self.W_visc[p], self.Q_t[p], self.W_t[p] = y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT]
+        self.phase[p] = np.where(self.xdot[p] < 0, 1, 0)
+        self.outside[p] |= law.outside(np.maximum(y[:, _X], 0.0)) & in_c
+        return y[:, _P]
+
+    def _free_flight(self, y, fi, batch, rem):
+        """Advance rows fi without contact force to the next onset (x >= 0 with
+        closing speed) or by rem. Returns the time advanced to onset (inf: none)."""
+        n, a = batch.n[fi], batch.a[fi]
+        x0 = y[fi, _X]
+        xd0 = -_dot(y[fi, _V], n)
+        c = -0.5 * _dot(a, n)  # x(t) = x0 + xd0 t + c t^2
+        tc = np.full(fi.shape, np.inf)
+        imm = ((x0 >= 0) & (xd0 > 0)) | ((x0 > 0) & (xd0 == 0))
+        tc[imm] = 0.0
+        D = xd0 * xd0 - 4.0 * c * x0
+        sq = np.sqrt(np.maximum(D, 0.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t_up = np.where(xd0 > 0, -2.0 * x0 / (sq + xd0), (sq - xd0) / (2.0 * c))
+            # starting overlapped and separating, pulled back: closing speed 0 before x reaches 0
+            t_turn = -xd0 / (2.0 * c)
+        up = (x0 < 0) & (D >= 0) & ((xd0 > 0) | (c > 0))
+        tc = np.where(~imm & up & (t_up >= 0), t_up, tc)
+        back = ~imm & (x0 >= 0) & (xd0 <= 0) & (c > 0)
+        stays = back & (x0 - xd0 * xd0 / (4.0 * np.where(c > 0, c, 1.0)) >= 0)
+        tc = np.where(stays, t_turn, tc)
+        tc = np.where(back & ~stays, t_up, tc)
+        tc = np.where(tc <= rem, tc, np.inf)
+        tadv = np.where(np.isfinite(tc), tc, rem)
+        y[fi, _X] = x0 + xd0 * tadv + c * tadv * tadv
+        y[fi, _V] += a * tadv[:, None]
+        y[fi, _VC] += a * tadv[:, None]
+        if np.any(stays & np.isfinite(tc)):  # exactly at the turn: closing speed 0, not slightly negative
+            j = fi[stays & np.isfinite(tc)]
+            y[j, _V] -= (_dot(y[j, _V], batch.n[j]))[:, None] * batch.n[j]
+        return tc
+
+    def _begin(self, g, law, p, new, y, batch, t_abs):
+        """Onset of the contacts at rows new: law.onset for all of them at once."""
+        pp = p[new]
+        n = batch.n[new]
+        W = batch.W[new]
+        nWn = np.einsum("ki,kij,kj->k", n, W, n)
+        if np.any(nWn <= 0):
+            raise ValueError(f"n.W.n = {nWn!r} 1/kg must be > 0 (both bodies fixed, or W is wrong)")
+        m = 1.0 / nWn
+        v = y[new, _V]
+        vn = np.maximum(-_dot(v, n), 0.0)
+        a_n = -_dot(batch.a[new], n)
+        v_used = np.maximum(vn, onset_speed_floor(law, m, a_n))
+        o = law.onset(v_used, m)
+        # store per pair (group arrays created on first use)
+        store = self._onset[g]
+        size = self._group_size[g]
+        for key, val in o.items():
+            val = np.broadcast_to(np.asarray(val, dtype=float), (pp.size,))
+            if key not in store:
+                store[key] = np.full(size, np.nan)
+            store[key][self._pos[pp]] = val
+        batch.onset = {key: arr[self._pos[p]] for key, arr in store.items()}
+        # duration estimate -> internal step
+        if "omega_x" in o:
+            tau_n = math.pi / np.asarray(o["omega_x"], dtype=float)
+        elif "k" in o:
+            tau_n = math.pi * np.sqrt(m / np.asarray(o["k"], dtype=float))
+        else:
+            tau_n = cf.hertz_tau(m, v_used, law.moduli.E, law.geom.R)
+        x_est = cf.hertz_x_max(m, v_used, law.moduli.E, law.geom.R)
+        o_new = {key: np.broadcast_to(np.asarray(val, dtype=float), (pp.size,)) for key, val in o.items()}
+        k_t, _ = law.tangential_stiffness(x_est, o_new)
+        T = np.eye(3) - n[:, :, None] * n[:, None, :]
+        w_t = np.linalg.eigvalsh(T @ W @ T)[:, -1]
+        with np.errstate(divide="ignore"):
+            tau_t = np.where(k_t.max(axis=1) * w_t > 0, math.pi / np.sqrt(k_t.max(axis=1) * w_t), np.inf)
+        tau = np.minimum(tau_n, tau_t)
+        self.tau_est[pp] = tau
+        self.h[pp] = tau / SUBSTEPS_PER_CONTACT
+        # bookkeeping
+        self.t_onset[pp] = t_abs
+        self.v_n_in[pp] = vn
+        self.v_n_used[pp] = v_used
+        self.m_eff[pp] = m
+        self.n_in[pp] = n
+        self.u_in[pp] = v - _dot(v, n)[:, None] * n
+        vc = y[new, _VC]
+        self.vc_in[pp] = vc - _dot(vc, n)[:, None] * n
+        self.x_max[pp] = np.maximum(y[new, _X], 0.0)
+        self.x_turn[pp] = 0.0
+        self.turned[pp] = False
+        self.tau1[pp] = 0.0
+        self.F_max[pp] = 0.0
+        self.x_at_F[pp] = 0.0
+        self.f_min[pp] = np.inf
+        self.f_max[pp] = 0.0
+        self.W_el_comp[pp] = 0.0
+        self.W_visc_comp[pp] = 0.0
+        self.outside[pp] = False
+        y[new, _S] = 0.0
+        y[new, _WEL] = y[new, _WVI] = y[new, _Q] = y[new, _WT] = 0.0
+        if self._probe is not None:
+            for q in pp:
+                self.body_in[int(q)] = dict(self._probe(int(q)) or {})
+        else:
+            for q in pp:
+                self.body_in[int(q)] = None
+
+    def _integrate(self, g, law, p, ci, y, batch, t_loc, t0, info):
+        """RK4 over rows ci until the end of the step or until some contact
+        ends (then return their row indices: they continue as free motion)."""
+        dt = self.dt
+        b = batch.sub(ci)
+        pp = p[ci]
+        rem = dt - t_loc[ci]
+        nsub = int(max(1, np.max(np.ceil(rem / self.h[pp] - 1e-9))))
+        h = rem / nsub
+        Y = y[ci]
+        force_zero = law.separation == "force-zero"
+        ended_rows = np.zeros(0, int)
+        for i in range(nsub):
+            Y1, Fn0, Ft0 = b.rk4(Y, h)
+            info["substeps"] += 1
+            # peak force and friction ratio at the substep start
+            better = Fn0 > self.F_max[pp]
+            self.x_at_F[pp] = np.where(better, Y[:, _X], self.x_at_F[pp])
+            self.F_max[pp] = np.maximum(self.F_max[pp], Fn0)
+            ok = (Fn0 >= F_RATIO_FLOOR * self.F_max[pp]) & (Fn0 > 0)
+            ratio = np.where(ok, Ft0 / np.where(ok, Fn0, 1.0), 0.0)
+            self.f_min[pp] = np.where(ok, np.minimum(self.f_min[pp], ratio), self.f_min[pp])
+            self.f_max[pp] = np.where(ok, np.maximum(self.f_max[pp], ratio), self.f_max[pp])
+            xd0, xd1 = b.xdot(Y), b.xdot(Y1)
+            # first maximum compression inside this substep
+            lo = np.zeros(ci.size)
+            turn = ~self.turned[pp] & (xd0 > 0) & (xd1 <= 0)
+            if np.any(turn):
+                j = np.flatnonzero(turn)
+                bj = b.sub(j)
+                th = _find_root(lambda th: bj.xdot(bj.rk4(Y[j], th * h[j])[0]),
+                                np.zeros(j.size), np.ones(j.size), xd0[j], xd1[j])
+                Yt = bj.rk4(Y[j], th * h[j])[0]
+                q = pp[j]
+                self.turned[q] = True
+                self.tau1[q] = t0 + t_loc[ci[j]] + th * h[j] - self.t_onset[q]
+                self.x_turn[q] = Yt[:, _X]
+                self.x_max[q] = np.maximum(self.x_max[q], Yt[:, _X])
+                self.W_el_comp[q] = Yt[:, _WEL]
+                self.W_visc_comp[q] = Yt[:, _WVI]
+                lo[j] = th
+            self.x_max[pp] = np.maximum(self.x_max[pp], Y1[:, _X])
+            # separation
+            end = (xd1 < 0) & (Y1[:, _X] < 0)
+            if force_zero:
+                end |= (xd1 < 0) & (b.indicator(Y1) < 0)
+            if np.any(end):
+                j = np.flatnonzero(end)
+                bj = b.sub(j)
+                Y0j = Y[j]
+                Ylo = bj.rk4(Y0j, lo[j] * h[j])[0]
+                xs = np.where(Ylo[:, _X] > 0, Ylo[:, _X], 1.0)
+                Bs = np.abs(bj.indicator(Ylo))
+                Bs = np.where(Bs > 0, Bs, 1.0)
+
+                def gfun(yy, bj=bj, xs=xs, Bs=Bs):
+                    gx = yy[:, _X] / xs
+                    if not force_zero:
+                        return gx
+                    gb = np.where(bj.xdot(yy) < 0, bj.indicator(yy) / Bs, 1.0)
+                    return np.minimum(gx, gb)
+
+                g_lo = gfun(Ylo)
+                g_hi = gfun(Y1[j])
+                # a substep that starts already past the event (should not happen): end at its start
+                g_lo = np.where(g_lo > 0, g_lo, 1e-300)
+                th = _find_root(lambda th: gfun(bj.rk4(Y0j, th * h[j])[0]), lo[j], np.ones(j.size), g_lo, g_hi)
+                Ye = bj.rk4(Y0j, th * h[j])[0]
+                gx = Ye[:, _X] / xs
+                by_force = np.zeros(j.size, bool)
+                if force_zero:
+                    by_force = np.where(bj.xdot(Ye) < 0, bj.indicator(Ye) / Bs, np.inf) < gx
+                Y1 = Y1.copy()
+                Y1[j] = Ye
+                t_end = t_loc[ci[j]] + th * h[j]
+                for r, jj in enumerate(j):
+                    self._end(int(pp[jj]), Ye[r], float(t0 + t_end[r]),
+                              "force-zero" if by_force[r] else "overlap-zero", b.n[jj])
+                info["ends"] += int(j.size)
+                t_loc[ci] += h
+                t_loc[ci[j]] = t_end
+                Y = Y1
+                ended_rows = ci[j]
+                break
+            Y = Y1
+            t_loc[ci] += h
+        else:
+            t_loc[ci] = dt  # exact end of step (no rounding drift)
+        y[ci] = Y
+        return ended_rows
+
+    # ------------------------------------------------------------ records --
+    def _end(self, p, ye, t_end, ended_by, n):
+        """Close the contact of pair p with the state ye (NY,) at time t_end."""
+        law = self.pairs[p].law
+        g = self._group_of[p]
+        onset = {k: float(v[self._pos[p]]) for k, v in self._onset[g].items()}
+        o1 = {k: np.array([v]) for k, v in onset.items()}
+        v = ye[_V]
+        xd_end = -float(v @ n)
+        v_out = max(-xd_end, 0.0)
+        vin = self.v_n_in[p] if self.v_n_in[p] > 0 else self.v_n_used[p]
+        tau = t_end - self.t_onset[p]
+        tau1 = self.tau1[p] if self.turned[p] else tau
+        u_in = self.u_in[p]
+        u_out = v + xd_end * n
+        lu = float(np.linalg.norm(u_in))
+        scale = max(vin, lu, float(np.linalg.norm(self.vc_in[p])))
+        cor_t_contact = (-float(u_out @ u_in) / lu**2) if lu > 1e-12 * scale else None
+        vct = self.vc_in[p]
+        lv = float(np.linalg.norm(vct))
+        cor_t = (float(ye[_VC] @ vct) / lv**2) if lv > 1e-12 * scale else None
+        x_m = float(self.x_turn[p]) if self.turned[p] else float(self.x_max[p])
+        outside = []
+        if self.outside[p] or bool(law.outside(np.array([self.x_max[p]]))[0]):
+            outside.append(f"x_max = {self.x_max[p]:.6g} m reached 2R: k_p = sqrt(2 - x/R) of (15) was clamped")
+        Pc = _pc(law, x_m, o1)
+        Pc_F = 1.5 * self.F_max[p] / float(area(self.x_at_F[p], law.geom, law.kp_mode)) if self.x_at_F[p] > 0 else 0.0
+        W_el, W_vi = float(ye[_WEL]), float(ye[_WVI])
+        rec = ImpactRecord(
+            cor_n=v_out / vin,
+            cor_t=cor_t,
+            cor_t_contact=cor_t_contact,
+            cor_tau_ratio=tau1 / (tau - tau1) if tau > tau1 else 0.0,
+            tau=float(tau), tau1=float(tau1), tau2=float(tau - tau1),
+            x_max=x_m, F_max=float(self.F_max[p]), Pc_max=Pc, Pc_at_Fmax=float(Pc_F),
+            W_el_comp=float(self.W_el_comp[p]), W_visc_comp=float(self.W_visc_comp[p]),
+            W_el_rest=-(W_el - float(self.W_el_comp[p])), W_visc_rest=W_vi - float(self.W_visc_comp[p]),
+            W_diss_n=W_el + W_vi, W_diss_t=float(ye[_WT]), Q_t=float(ye[_Q]),
+            spin_in=None, spin_out=None,
+            f_min=None if not math.isfinite(self.f_min[p]) else float(self.f_min[p]),
+            f_max=float(self.f_max[p]) if math.isfinite(self.f_min[p]) else None,
+            omega_x=onset.get("omega_x"), omega_y=onset.get("omega_y"),
+            ended_by=ended_by, law=law.name, engine=self.engine, dt=self.dt,
+            parameters=law.parameters(),
+            inputs={
+                "pair": p, "body1": _name(self.pairs[p].body1), "body2": _name(self.pairs[p].body2),
+                "t_onset": float(self.t_onset[p]), "t_end": float(t_end),
+                "v_n_in": float(self.v_n_in[p]), "v_n_onset_used": float(self.v_n_used[p]),
+                "v_t_in": lu, "mass_effective": float(self.m_eff[p]), "tangential": self.pairs[p].tangential,
+                "internal_step": float(self.h[p]), "tau_estimate": float(self.tau_est[p]),
+                "x_max_overall": float(self.x_max[p]), "onset": onset,
+            },
+            outside_validity=outside,
+        )
+        self.active[p] = False
+        # spin axis n x t of the incidence (rolling in the direction of incidence positive)
+        t_dir = vct if lv > 0 else u_in
+        lt = float(np.linalg.norm(t_dir))
+        axis = np.cross(self.n_in[p], t_dir / lt) if lt > 0 else np.zeros(3)
+        bi = self.body_in[p]
+        if bi is not None:
+            rec.inputs["body_in"] = {k: _plain(v) for k, v in bi.items()}
+            if "omega1" in bi and lt > 0:
+                rec.spin_in = float(np.asarray(bi["omega1"], dtype=float) @ axis)
+        self._pending.append((p, rec, axis if lt > 0 else None))
+
+    def _end_lost(self, p, t):
+        """An active contact the adapter stopped listing: record it as lost."""
+        y = np.zeros(NY)
+        y[_X] = self.x[p]
+        n = self.n_in[p]
+        y[_V] = -self.xdot[p] * n
+        y[_VC] = self.vc[p]
+        y[_WEL], y[_WVI], y[_Q], y[_WT] = self.W_el[p], self.W_visc[p], self.Q_t[p], self.W_t[p]
+        self._end(p, y, t, "lost", n)
+        self._pending[-1][1].outside_validity.append(
+            "the adapter stopped listing this pair while it was in contact: the contact was cut off")
+
+    def _finish_pending(self):
+        for p, rec, axis in self._pending:
+            if self._probe is not None:
+                bo = dict(self._probe(p) or {})
+                rec.inputs["body_out"] = {k: _plain(v) for k, v in bo.items()}
+                if "omega1" in bo and axis is not None:
+                    rec.spin_out = float(np.asarray(bo["omega1"], dtype=float) @ axis)
+            self.records.append(rec)
+        self._pending = []
+
+
+def _pc(law, x_m, o1):
+    """(20), (41): P_c = 1.5 F_n(x_max, 0)/S(x_max), as the reference solver."""
+    if x_m <= 0:
+        return 0.0
+    F = float(law.contact_normal_force(np.array([x_m]), np.array([0.0]), o1)[0])
+    return 1.5 * F / float(area(min(x_m, 2 * law.geom.R * (1 - 1e-12)), law.geom, law.kp_mode))
+
+
+def _name(b):
+    return b if isinstance(b, (str, int, float)) else repr(b)
+
+
+def _plain(v):
+    a = np.asarray(v)
+    return a.tolist() if a.ndim else a.item() if hasattr(a, "item") else v
