@@ -174,8 +174,8 @@ def two_spheres(
     builtin: dict | None = None,
 ) -> tuple[mujoco.MjModel, mujoco.MjData]:
     """Two free spheres in flight: ``"ball2"`` at rest with its top at z = 0,
-    ``"ball"`` above it approaching with the relative velocity of the
-    impact (line of centres = z)."""
+    ``"ball"`` approaching with the relative velocity of the impact, placed
+    so that the line of centres is z when the surfaces touch."""
     check_common(dt, integrator, gap, gravity)
     for name, b in (("ball", ball), ("ball2", ball2)):
         check_positive(f"{name} radius", b.radius, unit="m")
@@ -183,7 +183,9 @@ def two_spheres(
     vt, vn = initial_velocity(speed, angle_deg)
     check_finite("spin", spin)
     attrs = _contact_attrs(builtin)
-    b1, q1 = _free_sphere("ball", ball, (0.0, 0.0, ball.radius + gap), (vt, 0.0, -vn), spin, attrs)
+    # start upstream by the flight over the gap, so the centres line up along z at touch
+    x0 = -vt * gap / vn
+    b1, q1 = _free_sphere("ball", ball, (x0, 0.0, ball.radius + gap), (vt, 0.0, -vn), spin, attrs)
     b2, q2 = _free_sphere("ball2", ball2, (0.0, 0.0, -ball2.radius), (0.0, 0.0, 0.0), 0.0, attrs)
     exclude = "" if builtin is not None else '<contact><exclude body1="ball" body2="ball2"/></contact>'
     xml = (f'<mujoco model="two_spheres">{_option(dt, integrator, gravity)}'

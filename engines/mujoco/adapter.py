@@ -1,0 +1,437 @@
+"""The MuJoCo adapter: force laws between pairs of geoms through the
+``mjcb_passive`` hook (the contract is in :mod:`engines.base`).
+
+What it does each engine step (:meth:`MujocoAdapter.step` runs ``mj_step``):
+
+1. At the first call of the passive hook inside the step (positions,
+   velocities, the inertia matrix and its factorisation are then current),
+   read for every pair the contact of the two smooth shapes (sphere-plane,
+   sphere-box face, sphere-sphere): approach x, normal n (body 2 -> body 1),
+   the contact point mid-overlap, and the translational point Jacobians of
+   both bodies at that point (``mj_jac``), J = J_1 - J_2. From them
+   v_rel = J qvel, W = J M^-1 J^T (``mj_solveM``), and with the centre-of-mass
+   Jacobians J_c, v_com_rel = J_c qvel, W_com = J_c M^-1 J^T. This works for
+   links of articulated chains as for free bodies.
+2. Hand the pairs with x > -(closing distance in one step) to the contact
+   manager ONCE per step; it integrates the law over the step (sub-cycling)
+   and returns the step-averaged force.
+3. Add that force at the contact point to ``qfrc_passive`` with
+   ``mj_applyFT`` (+F on body 1, -F on body 2; a body welded to the world
+   takes none) in EVERY call of the hook during the step: RK4 calls it four
+   times per step, and all stages see the same force.
+
+MuJoCo's own contact for a managed pair must be off. The one mechanism used
+here is ``<contact><exclude body1=... body2=.../>`` between the two bodies
+(the scenes in :mod:`engines.mujoco.scenes` write it); the adapter refuses a
+model in which MuJoCo would still make a contact for the pair (contype /
+conaffinity match without an exclude, or an explicit ``<pair>``), rather
+than editing the caller's model behind its back.
+
+The relative acceleration of the contact points from everything but this
+contact (``a_ext``) is an estimate: the change of v_rel over the last step
+minus W times the impulse this adapter applied, over dt. For the first step
+it is gravity acting on the bodies that are not welded to the world.
+
+The hook is process-global: :func:`installed` puts ONE dispatching hook in
+place (dispatch by the MjData object), chains the previously installed
+Python hook and restores it in ``finally``, also when ``mj_step`` raises.
+Passive-hook calls outside :meth:`MujocoAdapter.step` (e.g. a bare
+``mj_forward``) add no contact force.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import dataclasses
+import math
+
+import mujoco
+import numpy as np
+
+from engines._geometry import Detection, sphere_box_face, sphere_plane, sphere_sphere
+from engines.base import ContactForces, ContactKinematics, EngineAdapter, PairSpec
+
+#: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times the
+#: distance the surfaces can close in one step (closing speed dt plus the
+#: external acceleration's share): a safety factor on a prediction that uses
+#: an estimated a_ext.
+CANDIDATE_FACTOR = 2.0
+#: A law's curvature and the geoms' radii must agree to this relative
+#: tolerance (a law built for another ball would give wrong forces silently).
+RADIUS_RTOL = 1e-9
+#: A tangential velocity below this share of the relative speed gives no
+#: incidence direction (a normal impact: cor_t is None).
+TANGENT_FLOOR = 1e-9
+
+_GEOM_NAMES = {
+    mujoco.mjtGeom.mjGEOM_PLANE: "plane", mujoco.mjtGeom.mjGEOM_HFIELD: "hfield",
+    mujoco.mjtGeom.mjGEOM_SPHERE: "sphere", mujoco.mjtGeom.mjGEOM_CAPSULE: "capsule",
+    mujoco.mjtGeom.mjGEOM_ELLIPSOID: "ellipsoid", mujoco.mjtGeom.mjGEOM_CYLINDER: "cylinder",
+    mujoco.mjtGeom.mjGEOM_BOX: "box", mujoco.mjtGeom.mjGEOM_MESH: "mesh", mujoco.mjtGeom.mjGEOM_SDF: "sdf",
+}
+_SECOND = ("sphere", "plane", "box")  # what body 2 may be; body 1 is a sphere
+
+
+@dataclasses.dataclass
+class _Pair:
+    """One managed pair resolved in the model."""
+
+    index: int
+    geom1: int
+    geom2: int
+    body1: int
+    body2: int
+    kind2: str  # "sphere", "plane" or "box"
+    radius1: float
+    fixed1: bool
+    fixed2: bool
+    # a_ext estimate: last step's v_rel [m/s] (3,), W [1/kg] (3, 3), impulse on body 1 [N s] (3,)
+    last_v_rel: np.ndarray | None = None
+    last_W: np.ndarray | None = None
+    last_impulse: np.ndarray | None = None
+    # incidence snapshot for the record (first candidate step of a contact)
+    onset: dict | None = None
+
+
+def geom_type_name(model: mujoco.MjModel, g: int) -> str:
+    return _GEOM_NAMES.get(int(model.geom_type[g]), f"type {int(model.geom_type[g])}")
+
+
+def _mujoco_contact_on(model: mujoco.MjModel, g1: int, g2: int) -> str | None:
+    """Why MuJoCo would make its own contact between geoms g1 and g2, or None."""
+    for k in range(model.npair):
+        if {int(model.pair_geom1[k]), int(model.pair_geom2[k])} == {g1, g2}:
+            return f"an explicit <contact><pair> (pair {k})"
+    if model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_CONTACT:
+        return None
+    b1, b2 = int(model.geom_bodyid[g1]), int(model.geom_bodyid[g2])
+    if b1 == b2:
+        return None
+    if int(model.body_weldid[b1]) == 0 and int(model.body_weldid[b2]) == 0:
+        return None  # MuJoCo never collides two bodies welded to the world
+    t1, a1 = int(model.geom_contype[g1]), int(model.geom_conaffinity[g1])
+    t2, a2 = int(model.geom_contype[g2]), int(model.geom_conaffinity[g2])
+    if not ((t1 & a2) or (t2 & a1)):
+        return None
+    signature = (min(b1, b2) << 16) + max(b1, b2)
+    if signature in set(int(s) for s in model.exclude_signature):
+        return None
+    return "contype/conaffinity match and no <contact><exclude> between the bodies"
+
+
+class MujocoAdapter(EngineAdapter):
+    """Force laws between pairs of MuJoCo geoms; see the module docstring.
+
+    model, data: the MuJoCo model and its data. pairs: PairSpec with
+    ``body1`` a sphere geom name and ``body2`` a sphere, plane or box geom
+    name (a box only across a face).
+    """
+
+    name = "mujoco"
+
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, pairs: list[PairSpec]):
+        if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
+            raise ValueError(f"model, data must be mujoco.MjModel and mujoco.MjData, got "
+                             f"{type(model).__name__}, {type(data).__name__}")
+        self.model, self.data = model, data
+        if not pairs:
+            raise ValueError("pairs is empty: give at least one PairSpec")
+        self._pairs = [self._resolve(i, p) for i, p in enumerate(pairs)]
+        super().__init__(pairs)
+        nv = model.nv
+        self._jac = np.zeros((3, nv))
+        self._jac2 = np.zeros((3, nv))
+        self._armed = False  # inside self.step's mj_step
+        self._fresh = False  # the step's force is still to be computed
+        self._installed = False
+        self._apply: list[tuple[int, int, bool, np.ndarray, np.ndarray]] = []
+        self._n_records = 0
+        self.steps = 0
+
+    # -- set-up ----------------------------------------------------------------
+    def _geom(self, name, which: str, i: int) -> int:
+        g = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, str(name)) if isinstance(name, str) else -1
+        if g < 0:
+            names = [self.model.geom(k).name for k in range(self.model.ngeom)]
+            raise ValueError(f"pair {i}: {which} = {name!r} is not a geom name of the model "
+                             f"(geoms: {', '.join(repr(n) for n in names if n) or 'none named'})")
+        return g
+
+    def _resolve(self, i: int, p: PairSpec) -> _Pair:
+        m = self.model
+        g1, g2 = self._geom(p.body1, "body1", i), self._geom(p.body2, "body2", i)
+        if g1 == g2:
+            raise ValueError(f"pair {i}: body1 and body2 are the same geom {p.body1!r}")
+        t1, t2 = geom_type_name(m, g1), geom_type_name(m, g2)
+        for name, t in ((p.body1, t1), (p.body2, t2)):
+            if t not in _SECOND:
+                raise ValueError(f"pair {i}: geom {name!r} is a {t}; the MSF contact needs smooth curvature "
+                                 f"and the MuJoCo adapter supports sphere, plane and box (face) geoms only")
+        if t1 != "sphere":
+            raise ValueError(f"pair {i}: body1 = {p.body1!r} is a {t1}; body1 must be the sphere "
+                             f"(the normal points from body2 to body1)")
+        R1 = float(m.geom_size[g1, 0])
+        R2 = float(m.geom_size[g2, 0]) if t2 == "sphere" else math.inf
+        curv = p.law.curvature
+        for label, want, got in (("R1a", R1, curv.R1a), ("R1b", R1, curv.R1b),
+                                 ("R2a", R2, curv.R2a), ("R2b", R2, curv.R2b)):
+            same = (math.isinf(want) and math.isinf(got)) or (
+                math.isfinite(want) and math.isfinite(got) and abs(got - want) <= RADIUS_RTOL * want)
+            if not same:
+                raise ValueError(f"pair {i}: the law's curvature {label} = {got!r} m does not match the geom "
+                                 f"radius {want!r} m of {p.body1 if label[1] == '1' else p.body2!r}")
+        why = _mujoco_contact_on(m, g1, g2)
+        if why is not None:
+            raise ValueError(f"pair {i} ({p.body1!r}, {p.body2!r}): MuJoCo's own contact is on ({why}); "
+                             f"add <contact><exclude body1=\"{m.body(int(m.geom_bodyid[g1])).name}\" "
+                             f"body2=\"{m.body(int(m.geom_bodyid[g2])).name or 'world'}\"/> so the force is "
+                             "not counted twice")
+        b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
+        fixed1, fixed2 = int(m.body_weldid[b1]) == 0, int(m.body_weldid[b2]) == 0
+        if fixed1 and fixed2:
+            raise ValueError(f"pair {i}: both {p.body1!r} and {p.body2!r} are welded to the world")
+        return _Pair(i, g1, g2, b1, b2, t2, R1, fixed1, fixed2)
+
+    # -- contract --------------------------------------------------------------
+    @property
+    def timestep(self) -> float:
+        return float(self.model.opt.timestep)
+
+    def step(self, n: int = 1) -> None:
+        """Run ``mj_step`` n times with the pairs' laws acting (installs the
+        hook for the call if it is not installed already)."""
+        if int(n) != n or n < 0:
+            raise ValueError(f"n = {n!r} steps must be a whole number >= 0")
+        ctx = contextlib.nullcontext() if self._installed else installed(self)
+        with ctx:
+            for _ in range(int(n)):
+                self._armed, self._fresh = True, True
+                try:
+                    mujoco.mj_step(self.model, self.data)
+                finally:
+                    self._armed = False
+                self.steps += 1
+                self._finish_records()
+
+    def __enter__(self):
+        self._ctx = installed(self)
+        return self._ctx.__enter__()
+
+    def __exit__(self, *exc):
+        ctx, self._ctx = self._ctx, None
+        return ctx.__exit__(*exc)
+
+    # -- the hook ----------------------------------------------------------------
+    def _passive(self, model, data) -> None:
+        if not self._armed:
+            return
+        if self._fresh:
+            self._fresh = False
+            self._compute()
+        for b1, b2, fixed2, F, point in self._apply:
+            mujoco.mj_applyFT(model, data, F, np.zeros(3), point, b1, data.qfrc_passive)
+            if not fixed2:
+                mujoco.mj_applyFT(model, data, -F, np.zeros(3), point, b2, data.qfrc_passive)
+
+    def _geometry(self, p: _Pair) -> Detection:
+        """The contact of pair p from the current poses (engines._geometry);
+        a sphere at a box edge or corner within reach raises ValueError."""
+        m, d = self.model, self.data
+        c1 = d.geom_xpos[p.geom1]
+        if p.kind2 == "sphere":
+            return sphere_sphere(c1, p.radius1, d.geom_xpos[p.geom2], float(m.geom_size[p.geom2, 0]))
+        rot = d.geom_xmat[p.geom2].reshape(3, 3)
+        if p.kind2 == "plane":
+            return sphere_plane(c1, p.radius1, d.geom_xpos[p.geom2], rot[:, 2])
+        # reach for the edge check: the centre's relative speed over one step
+        v_c = self._jacobian(p.body1, c1, self._jac) @ d.qvel - self._jacobian(p.body2, c1, self._jac2) @ d.qvel
+        reach = CANDIDATE_FACTOR * float(np.linalg.norm(v_c)) * self.timestep + p.radius1
+        try:
+            return sphere_box_face(c1, p.radius1, d.geom_xpos[p.geom2], rot, m.geom_size[p.geom2, :3], margin=reach)
+        except ValueError as exc:
+            raise ValueError(f"pair {p.index} ({self.pairs[p.index].body1!r}, {self.pairs[p.index].body2!r}): "
+                             f"{exc}") from None
+
+    def _jacobian(self, body: int, point, out) -> np.ndarray:
+        if int(self.model.body_weldid[body]) == 0:
+            out[:] = 0.0
+        else:
+            mujoco.mj_jac(self.model, self.data, out, None, point, body)
+        return out
+
+    def _first_step_a_ext(self, p: _Pair) -> np.ndarray:
+        g = np.array(self.model.opt.gravity, dtype=float)
+        if self.model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY:
+            g = np.zeros(3)
+        return (0.0 if p.fixed1 else 1.0) * g - (0.0 if p.fixed2 else 1.0) * g
+
+    def _compute(self) -> None:
+        """Read the kinematics of every candidate pair, call the manager once,
+        and keep the forces to apply in every hook call of this step."""
+        m, d = self.model, self.data
+        dt = self.timestep
+        rows = []
+        for p in self._pairs:
+            det = self._geometry(p)
+            x, n, point = float(det.x[0]), det.normal[0], det.point[0]
+            J = self._jacobian(p.body1, point, self._jac).copy()
+            J -= self._jacobian(p.body2, point, self._jac2)
+            v_rel = J @ d.qvel
+            if p.last_v_rel is not None:
+                a_ext = (v_rel - p.last_v_rel - p.last_W @ p.last_impulse) / dt
+            else:
+                a_ext = self._first_step_a_ext(p)
+            p.last_v_rel, p.last_impulse = v_rel, np.zeros(3)
+            reach = CANDIDATE_FACTOR * (max(-float(v_rel @ n), 0.0) * dt
+                                        + 0.5 * float(np.linalg.norm(a_ext)) * dt * dt)
+            if x <= -reach:
+                p.last_W = np.zeros((3, 3))
+                p.onset = None
+                continue
+            # W = J M^-1 J^T, W_com = J_c M^-1 J^T
+            MinvJT = np.zeros((3, m.nv))
+            mujoco.mj_solveM(m, d, MinvJT, np.ascontiguousarray(J))
+            W = J @ MinvJT.T
+            p.last_W = W
+            Jc = self._jacobian(p.body1, d.xipos[p.body1], self._jac).copy()
+            Jc -= self._jacobian(p.body2, d.xipos[p.body2], self._jac2)
+            v_com = Jc @ d.qvel
+            W_com = Jc @ MinvJT.T
+            if p.onset is None:
+                p.onset = {"n": n.copy(), "v_com": v_com.copy(), "v_rel": v_rel.copy(),
+                           "w1": self._angular_velocity(p.body1)}
+            rows.append((p.index, x, n, point, v_rel, v_com, W, W_com, a_ext))
+        self._apply = []
+        if not rows:
+            return
+        cols = list(zip(*rows))
+        kin = ContactKinematics(
+            pair=np.array(cols[0], dtype=int), x=np.array(cols[1], dtype=float),
+            normal=np.array(cols[2]), point=np.array(cols[3]), v_rel=np.array(cols[4]),
+            v_com_rel=np.array(cols[5]), W=np.array(cols[6]), W_com=np.array(cols[7]),
+            a_ext=np.array(cols[8]), t=float(d.time))
+        out: ContactForces = self.manager.step(kin)
+        for k, i in enumerate(np.asarray(out.pair, dtype=int)):
+            F = np.array(out.force[k], dtype=float)
+            if not np.any(F):
+                continue
+            p = self._pairs[i]
+            p.last_impulse = F * dt
+            self._apply.append((p.body1, p.body2, p.fixed2, F, np.array(out.point[k], dtype=float)))
+
+    def _angular_velocity(self, body: int) -> np.ndarray:
+        res = np.zeros(6)
+        mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, body, res, 0)
+        return res[:3].copy()
+
+    def _com_velocity(self, body: int) -> np.ndarray:
+        if int(self.model.body_weldid[body]) == 0:
+            return np.zeros(3)
+        J = np.zeros((3, self.model.nv))
+        mujoco.mj_jac(self.model, self.data, J, None, self.data.xipos[body], body)
+        return J @ self.data.qvel
+
+    def separating(self, i: int) -> bool:
+        """True if body 1 of pair i moves away from body 2 along the contact
+        normal at the current state (after a step)."""
+        p = self._pairs[i]
+        self._refresh()
+        det = self._geometry(p)
+        n, point = det.normal[0], det.point[0]
+        J = self._jacobian(p.body1, point, self._jac).copy()
+        J -= self._jacobian(p.body2, point, self._jac2)
+        return float((J @ self.data.qvel) @ n) > 0.0
+
+    def _refresh(self) -> None:
+        """Positions and velocities of the current state (after mj_step the
+        derived quantities are those of the step's start)."""
+        mujoco.mj_kinematics(self.model, self.data)
+        mujoco.mj_comPos(self.model, self.data)
+        mujoco.mj_comVel(self.model, self.data)
+
+    # -- records -----------------------------------------------------------------
+    def _finish_records(self) -> None:
+        """Fill the engine-side fields of the records finished in this step:
+        cor_t from the relative centre-of-mass tangential velocity, spin_in and
+        spin_out of body 1 about n x t (t: the incidence direction)."""
+        recs = self.manager.records
+        if len(recs) < self._n_records:  # popped by the caller
+            self._n_records = 0
+        for k in range(self._n_records, len(recs)):
+            recs[k] = self._complete(recs[k])
+        self._n_records = len(recs)
+
+    def _complete(self, rec):
+        i = int(rec.inputs.get("pair", 0)) if isinstance(rec.inputs, dict) else 0
+        p = self._pairs[i]
+        self._refresh()
+        on = p.onset or {"n": np.array([0.0, 0.0, 1.0]), "v_com": np.zeros(3), "v_rel": np.zeros(3),
+                         "w1": np.zeros(3)}
+        n = on["n"]
+        v_in = on["v_com"]
+        vt_in = v_in - (v_in @ n) * n
+        scale = max(float(np.linalg.norm(v_in)), 1e-300)
+        if np.linalg.norm(vt_in) > TANGENT_FLOOR * scale:
+            t = vt_in / np.linalg.norm(vt_in)
+        else:
+            u = on["v_rel"] - (on["v_rel"] @ n) * n
+            t = u / np.linalg.norm(u) if np.linalg.norm(u) > TANGENT_FLOOR * scale else None
+        v_out = self._com_velocity(p.body1) - self._com_velocity(p.body2)
+        w_out = self._angular_velocity(p.body1)
+        fields = {"engine": self.name, "dt": self.timestep}
+        if t is not None:
+            axis = np.cross(n, t)
+            fields["spin_in"] = float(on["w1"] @ axis)
+            fields["spin_out"] = float(w_out @ axis)
+            vt0 = float(v_in @ t)
+            fields["cor_t"] = float(v_out @ t) / vt0 if abs(vt0) > TANGENT_FLOOR * scale else None
+        else:
+            fields["spin_in"], fields["spin_out"], fields["cor_t"] = 0.0, 0.0, None
+        p.onset = None
+        return dataclasses.replace(rec, **fields)
+
+
+# -- the one global hook ------------------------------------------------------------
+_REGISTRY: dict[int, MujocoAdapter] = {}
+_PREVIOUS: list = []  # the hook that was installed before ours (one entry while installed)
+
+
+def _dispatch(model, data) -> None:
+    """The one mjcb_passive of this process: chain the previous Python hook,
+    then the adapter of this MjData, if any."""
+    if _PREVIOUS and _PREVIOUS[0] is not None:
+        _PREVIOUS[0](model, data)
+    adapter = _REGISTRY.get(id(data))
+    if adapter is not None and adapter.data is data:
+        adapter._passive(model, data)
+
+
+@contextlib.contextmanager
+def installed(adapter: MujocoAdapter):
+    """Install the dispatching ``mjcb_passive`` for ``adapter`` for the
+    duration of the block; restore the previous hook in ``finally`` (also
+    when the step or the hook raises). Several adapters (different MjData)
+    may be installed at once; the previous hook is restored when the last
+    one leaves."""
+    key = id(adapter.data)
+    if key in _REGISTRY:
+        raise ValueError("an adapter for this MjData is already installed")
+    if not _REGISTRY:
+        prev = mujoco.get_mjcb_passive()
+        if isinstance(prev, ctypes._CFuncPtr):
+            raise ValueError("a native (ctypes) mjcb_passive is installed; it cannot be chained from Python")
+        _PREVIOUS[:] = [prev]
+        mujoco.set_mjcb_passive(_dispatch)
+    _REGISTRY[key] = adapter
+    adapter._installed = True
+    try:
+        yield adapter
+    finally:
+        adapter._installed = False
+        adapter._armed = False
+        _REGISTRY.pop(key, None)
+        if not _REGISTRY:
+            prev = _PREVIOUS[0] if _PREVIOUS else None
+            _PREVIOUS.clear()
+            mujoco.set_mjcb_passive(prev)
