@@ -31,13 +31,14 @@ second step on).
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from dataclasses import dataclass
 
 import numpy as np
 import pybullet as pb
 
+from engines import _geometry
+from engines._contacts import closing_distance, effective_inverse_inertia_free
 from engines.base import ContactKinematics, EngineAdapter, PairSpec
 
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times
@@ -47,9 +48,6 @@ CANDIDATE_FACTOR = 2.0
 #: A law's curvature and the shapes' radii must agree to this relative
 #: tolerance (a law built for another ball would give wrong forces silently).
 RADIUS_RTOL = 1e-9
-#: A tangential velocity below this share of the relative speed gives no
-#: incidence direction (a normal impact: cor_t is None).
-TANGENT_FLOOR = 1e-9
 
 _SHAPE_NAMES = {pb.GEOM_SPHERE: "sphere", pb.GEOM_BOX: "box", pb.GEOM_CAPSULE: "capsule",
                 pb.GEOM_CYLINDER: "cylinder", pb.GEOM_PLANE: "plane", pb.GEOM_MESH: "mesh"}
@@ -81,11 +79,6 @@ def _mat(quat) -> np.ndarray:
     return np.array(pb.getMatrixFromQuaternion(quat)).reshape(3, 3)
 
 
-def _skew(r) -> np.ndarray:
-    x, y, z = r
-    return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-
-
 class PybulletAdapter(EngineAdapter):
     """Force laws between pairs of pybullet bodies.
 
@@ -115,9 +108,10 @@ class PybulletAdapter(EngineAdapter):
             if b1 == b2:
                 raise ValueError(f"pairs[{i}]: body1 and body2 are the same link {b1}")
             s1, s2 = self._shape(b1, f"pairs[{i}].body1"), self._shape(b2, f"pairs[{i}].body2")
-            if "sphere" not in (s1.kind, s2.kind):
-                raise ValueError(f"pairs[{i}]: {s1.kind}-{s2.kind} is not a smooth pair; supported: "
-                                 "sphere-sphere, sphere-plane, sphere-box face")
+            try:
+                _geometry.check_pair_supported(s1.kind, s2.kind)
+            except ValueError as e:
+                raise ValueError(f"pairs[{i}] ({b1}, {b2}): {e}") from None
             if self._fixed(b1) and self._fixed(b2):
                 raise ValueError(f"pairs[{i}]: both {b1} and {b2} are fixed (mass 0)")
             _check_curvature(i, p, s1, s2)
@@ -130,12 +124,12 @@ class PybulletAdapter(EngineAdapter):
         self._last_v_rel = np.zeros((n, 3))
         self._last_dv_own = np.zeros((n, 3))
         self._have_last = np.zeros(n, bool)
+        self._last_a_ext = np.zeros((n, 3))
         #: total impulse this adapter applied on body 1 of each pair [N s] (n, 3)
         self.impulse = np.zeros((n, 3))
         self._steps = 0
         self._closed = False
-        self._onset: list[dict | None] = [None] * n  # incidence snapshot per pair, for the records
-        self._n_records = 0
+        self.manager.set_body_probe(self._probe)
 
     # -- validation ---------------------------------------------------------
     def _check_body(self, b, label):
@@ -252,11 +246,11 @@ class PybulletAdapter(EngineAdapter):
         if self._fixed(b):
             return np.zeros((3, 3)), np.zeros((3, 3))
         info = pb.getDynamicsInfo(b[0], b[1], physicsClientId=self.client)
-        m, Idiag, _, iorn = info[0], np.asarray(info[2], float), info[3], info[4]
-        R = pose.rot @ _mat(iorn)
-        Iinv_w = R @ np.diag(1.0 / Idiag) @ R.T
-        rx = _skew(point - pose.com)
-        return np.eye(3) / m - rx @ Iinv_w @ rx, np.eye(3) / m
+        m, Idiag = info[0], np.asarray(info[2], float)
+        # getBasePositionAndOrientation gives the inertial frame: its axes are the principal ones
+        I_world = pose.rot @ np.diag(Idiag) @ pose.rot.T
+        W = effective_inverse_inertia_free(m, I_world, point - pose.com, math.inf, None, np.zeros(3))
+        return W, np.eye(3) / m
 
     def _inverse_inertia(self, i, poses, point):
         """W and W_com of pair i at ``point`` (module docstring, contract item 3)."""
@@ -288,33 +282,24 @@ class PybulletAdapter(EngineAdapter):
     def _world_shape(self, shape: _Shape, pose: _Pose):
         return pose.com + pose.rot @ shape.pos, pose.rot @ shape.rot
 
-    def _detect(self, i, poses):
-        """(x, n body2->body1, point mid-overlap) of pair i."""
+    def _detect(self, i, poses, margin=math.inf):
+        """(x, n body2->body1, point mid-overlap) of pair i (:mod:`engines._geometry`)."""
         (s1, s2) = self._shapes[i]
         c1, R1 = self._world_shape(s1, poses[0])
         c2, R2 = self._world_shape(s2, poses[1])
         flip = s1.kind != "sphere"
-        if flip:  # put the sphere first, flip the normal back at the end
+        if flip:  # the detectors take the sphere first; the roles are swapped back below
             s1, s2, c1, c2, R1, R2 = s2, s1, c2, c1, R2, R1
         r1 = float(s1.size[0])
         if s2.kind == "sphere":
-            d = c1 - c2
-            L = float(np.linalg.norm(d))
-            if L == 0.0:
-                raise RuntimeError(f"pair {i}: the sphere centres coincide; no contact normal")
-            n = d / L
-            r2 = float(s2.size[0])
-            x = r1 + r2 - L
-            point = c2 + n * (r2 - 0.5 * x)
+            det = _geometry.sphere_sphere(c1, r1, c2, float(s2.size[0]))
         elif s2.kind == "plane":
-            n = R2 @ s2.size
-            x = r1 - float((c1 - c2) @ n)
-            point = c1 - n * (r1 - 0.5 * x)
+            det = _geometry.sphere_plane(c1, r1, c2, R2 @ s2.size)
         else:
-            x, n, point = _sphere_box_face(c1, r1, c2, R2, s2.size, i)
+            det = _geometry.sphere_box_face(c1, r1, c2, R2, s2.size, margin=margin)
         if flip:
-            n = -n
-        return x, n, point
+            det = det.swapped()
+        return float(det.x[0]), det.normal[0], det.point[0]
 
     def _kinematics(self):
         n = len(self.pairs)
@@ -324,7 +309,7 @@ class PybulletAdapter(EngineAdapter):
         for i in range(n):
             b1, b2 = self._bodies[i]
             poses = (self._pose(b1), self._pose(b2))
-            x, nrm, point = self._detect(i, poses)
+            x, nrm, point = self._detect(i, poses, self._edge_margin(i, poses, grav))
             v1 = poses[0].v + np.cross(poses[0].w, point - poses[0].com)
             v2 = poses[1].v + np.cross(poses[1].w, point - poses[1].com)
             v_rel = v1 - v2
@@ -333,17 +318,30 @@ class PybulletAdapter(EngineAdapter):
                 a_ext = (v_rel - self._last_v_rel[i] - self._last_dv_own[i]) / self._dt
             else:
                 a_ext = grav * (self._free(b1) - self._free(b2))
+            self._last_a_ext[i] = a_ext
             rows.append((i, x, nrm, point, v_rel, v_com_rel, a_ext, poses))
         return rows
+
+    def _edge_margin(self, i, poses, grav) -> float:
+        """Gap below which a sphere over a box edge is refused: a bound on the
+        distance the surfaces can close within one step (inf while in contact)."""
+        if self._active(i):
+            return math.inf
+        ext = [float(s.size[0]) if s.kind == "sphere" else float(np.linalg.norm(s.pos) + np.linalg.norm(s.size))
+               for s in self._shapes[i]]
+        vb = (np.linalg.norm(poses[0].v - poses[1].v) + np.linalg.norm(poses[0].w) * ext[0]
+              + np.linalg.norm(poses[1].w) * ext[1])
+        if self._have_last[i]:
+            ab = np.linalg.norm((self._last_a_ext[i]))
+        else:
+            ab = 2.0 * np.linalg.norm(grav)
+        return CANDIDATE_FACTOR * (vb * self._dt + 0.5 * ab * self._dt**2)
 
     def _free(self, b) -> float:
         return 1.0 if (not self._articulated(b) and not self._fixed(b)) else 0.0
 
     def _active(self, i) -> bool:
-        try:
-            return self.manager.state(i) is not None
-        except (KeyError, IndexError):
-            return False
+        return bool(self.manager.active[i])
 
     # -- one step -------------------------------------------------------------
     def _step_once(self):
@@ -352,14 +350,11 @@ class PybulletAdapter(EngineAdapter):
         cand = []
         W_of = {}
         for i, x, nrm, point, v_rel, v_com_rel, a_ext, poses in self._kinematics():
-            vn, an = float(v_rel @ nrm), float(a_ext @ nrm)
-            closing = max(-vn, 0.0) * dt + 0.5 * max(-an, 0.0) * dt * dt
-            if x > -CANDIDATE_FACTOR * closing or self._active(i):
+            closing = float(closing_distance(-(v_rel @ nrm), -(a_ext @ nrm), dt, CANDIDATE_FACTOR))
+            if x > -closing or self._active(i):
                 W, Wc = self._inverse_inertia(i, poses, point)
                 W_of[i] = W
                 cand.append((i, x, nrm, point, v_rel, v_com_rel, W, Wc, a_ext))
-                if self._onset[i] is None:
-                    self._onset[i] = {"n": nrm, "v_com": v_com_rel, "v_rel": v_rel, "w1": poses[0].w}
             self._last_v_rel[i] = v_rel
             self._last_dv_own[i] = 0.0
             self._have_last[i] = True
@@ -391,48 +386,19 @@ class PybulletAdapter(EngineAdapter):
                 self.impulse[i] += F * dt
         pb.stepSimulation(physicsClientId=c)
         self._steps += 1
-        self._finish_records()
 
     # -- records ----------------------------------------------------------------
-    def _finish_records(self) -> None:
-        """Fill the engine-side fields of the records finished in this step
-        (the velocities are now those after the step): cor_t from the relative
-        centre-of-mass tangential velocity, spin_in and spin_out of body 1
-        about n x t (t: the incidence direction)."""
-        recs = self.manager.records
-        if len(recs) < self._n_records:  # popped by the caller
-            self._n_records = 0
-        for k in range(self._n_records, len(recs)):
-            recs[k] = self._complete(recs[k])
-        self._n_records = len(recs)
+    def _probe(self, i) -> dict:
+        """Body-level quantities for the manager's records (its body probe):
+        body 1's angular velocity gives spin_in/spin_out about n x t."""
+        b1, _ = self._bodies[i]
+        return {"omega1": self._pose(b1).w}
 
-    def _complete(self, rec):
-        i = int(rec.inputs.get("pair", 0)) if isinstance(rec.inputs, dict) else 0
-        b1, b2 = self._bodies[i]
-        on = self._onset[i] or {"n": np.array([0.0, 0.0, 1.0]), "v_com": np.zeros(3), "v_rel": np.zeros(3),
-                                "w1": np.zeros(3)}
-        n = on["n"]
-        v_in = on["v_com"]
-        vt_in = v_in - (v_in @ n) * n
-        scale = max(float(np.linalg.norm(v_in)), 1e-300)
-        if np.linalg.norm(vt_in) > TANGENT_FLOOR * scale:
-            t = vt_in / np.linalg.norm(vt_in)
-        else:
-            u = on["v_rel"] - (on["v_rel"] @ n) * n
-            t = u / np.linalg.norm(u) if np.linalg.norm(u) > TANGENT_FLOOR * scale else None
-        p1, p2 = self._pose(b1), self._pose(b2)
-        v_out = p1.v - p2.v
-        fields = {"engine": self.name, "dt": self._dt}
-        if t is not None:
-            axis = np.cross(n, t)
-            fields["spin_in"] = float(on["w1"] @ axis)
-            fields["spin_out"] = float(p1.w @ axis)
-            vt0 = float(v_in @ t)
-            fields["cor_t"] = float(v_out @ t) / vt0 if abs(vt0) > TANGENT_FLOOR * scale else None
-        else:
-            fields["spin_in"], fields["spin_out"], fields["cor_t"] = 0.0, 0.0, None
-        self._onset[i] = None
-        return dataclasses.replace(rec, **fields)
+    @property
+    def records(self) -> list:
+        """Finished impacts (msf_contact.ImpactRecord), oldest first, with the
+        engine's spin (the manager completes them when they are read)."""
+        return self.manager.finished()
 
     @property
     def time(self) -> float:
@@ -456,22 +422,3 @@ def _check_curvature(i, p: PairSpec, s1: _Shape, s2: _Shape) -> None:
         if not same:
             raise ValueError(f"pairs[{i}]: the law's curvature {label} = {got!r} m does not match the collision "
                              f"shape's radius {want!r} m of {p.body1 if label[1] == '1' else p.body2}")
-
-
-def _sphere_box_face(c, r, cb, Rb, half, i):
-    """Sphere (centre c, radius r) against the box (centre cb, rotation Rb,
-    half extents ``half``): (x, n box->sphere, point). Only a face contact
-    is smooth: a sphere whose centre projects outside the face (an edge or
-    corner contact) is refused."""
-    local = Rb.T @ (c - cb)
-    outside = np.abs(local) > half
-    if int(outside.sum()) != 1:
-        where = "inside the box" if not outside.any() else "over an edge or corner"
-        raise ValueError(f"pair {i}: the sphere centre is {where} of the box (local {local.tolist()}, half extents "
-                         f"{half.tolist()}): only a box face is a smooth contact for the law")
-    k = int(np.argmax(outside))
-    sgn = math.copysign(1.0, local[k])
-    n = Rb[:, k] * sgn
-    x = r - (abs(local[k]) - half[k])
-    point = c - n * (r - 0.5 * x)
-    return x, n, point
