@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import re
 import sys
 import warnings
 from dataclasses import asdict, dataclass, replace
@@ -595,8 +596,20 @@ register_command("identify", "E', E'' and tg(beta) from a measured (tau_x, k_x),
 
 
 # ------------------------------------------------------------------ main ---
+class _Parser(argparse.ArgumentParser):
+    """argparse reading ``--tau -1e-3`` as a (negative, then refused by name)
+    number; plain argparse takes only -1 and -0.5 for numbers and would
+    report "expected one argument" without the value."""
+
+    _NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-inf$|^-nan$", re.IGNORECASE)
+
+    def __init__(self, *a, **kw):
+        super().__init__(*a, **kw)
+        self._negative_number_matcher = self._NUMBER
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = _Parser(
         prog=PROG,
         description="The MSF viscoelastic contact model (Goloshchapov 2015): impacts and identification. SI units.",
     )
