@@ -34,7 +34,7 @@ from msf_contact._validate import ValidityWarning, check_finite, check_positive,
 from msf_contact.geometry import KP_MODES, Curvature, peak_pressure_closed
 from msf_contact.laws import LAWS, OMEGA_MODES, ForceLaw, make_law
 from msf_contact.materials import MODULUS_CONVENTIONS, ContactPair, Material, preset, preset_names
-from msf_contact.record import CONTRACT_KEYS, ImpactRecord
+from msf_contact.record import CONTRACT_KEYS, ImpactRecord, _clean
 from msf_contact.solver import TANGENTIAL_MODES, Body, check_impact_inputs, reduced_mass, simulate_impact
 
 PROG = "msf-contact"
@@ -483,6 +483,11 @@ IMPACT_ROWS = (
 )
 
 
+def to_json(d: dict) -> str:
+    """Strict JSON (SI units): infinities (a rigid plate's modulus) and NaN become null."""
+    return json.dumps(_clean(d), allow_nan=False)
+
+
 def _fmt(v) -> str:
     if v is None:
         return "-"
@@ -520,7 +525,7 @@ def cmd_impact(args) -> int:
                                 "plate": _material_dict(setup.plate.material)}
     d["inputs"]["engine"] = args.engine
     if args.json:
-        print(json.dumps(d))
+        print(to_json(d))
     else:
         print(format_table([(k, d.get(k), u) for k, u in IMPACT_ROWS], _impact_title(d)))
         for reason in d.get("outside_validity") or []:
@@ -566,7 +571,7 @@ def cmd_identify(args) -> int:
                       "plate": _material_dict(plate)},
            "printed": asdict(printed), "numerical": asdict(numerical)}
     if args.json:
-        print(json.dumps(out, default=lambda v: None))
+        print(to_json(out))
         return 0
     rows = [
         ("E' [Pa]", printed.E_storage, numerical.ball_E_storage),

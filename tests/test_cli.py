@@ -42,10 +42,14 @@ def run(capsys, *argv):
     return code, out, err
 
 
+def _no_constants(name):
+    raise ValueError(f"{name} is not JSON")
+
+
 def run_json(capsys, *argv):
     code, out, err = run(capsys, *argv, "--json")
     assert code == 0, err
-    return json.loads(out)
+    return json.loads(out, parse_constant=_no_constants)  # strict JSON: no NaN/Infinity
 
 
 def direct(ball, plate, R, V, law="msf", angle=90.0, spin=0.0, mass=None, **opts):
@@ -275,8 +279,12 @@ def test_identify_table(capsys):
     code, out, _ = run(capsys, "identify", "--tau", "7e-4", "--cor", "0.7", "--speed", "1", "--radius", "0.01",
                        "--mass", "0.005", "--kp-mode", "hertz")
     assert code == 0
-    for label in ("E' [Pa]", "E'' [Pa]", "E'' (97) as printed [Pa]", "tg(beta) [-]", "numerical"):
-        assert label in out
+    printed = identify_printed(ImpactMeasurement(7e-4, 0.7, 1.0, 0.01, 0.005), "hertz")
+    rows = {ln[:28].strip(): ln[28:].split() for ln in out.splitlines()[2:]}
+    for label, want in (("E' [Pa]", printed.E_storage), ("E'' [Pa]", printed.E_loss),
+                        ("E'' (97) as printed [Pa]", printed.E_loss_as_printed), ("tg(beta) [-]", printed.tan_delta)):
+        assert float(rows[label][0]) == pytest.approx(want, rel=5e-6), label  # 6 significant digits
+    assert rows["E'' (97) as printed [Pa]"][1] == "-"  # no numerical counterpart
 
 
 @pytest.mark.parametrize("argv, needles", [
