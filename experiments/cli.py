@@ -590,8 +590,8 @@ def cmd_identify(args) -> int:
     for label, a, b in rows:
         print(f"  {label:<{w0}}  {_fmt(a):>16}  {_fmt(b):>16}")
     if not plate.rigid:
-        print(f"  (numerical: the ball's values; effective (9), (91): E' = {_fmt(numerical.E_storage)} Pa, "
-              f"tg(beta) = {_fmt(numerical.tan_delta)})")
+        print(f"  ((96)-(97): effective values of the pair; numerical: the ball's, with effective (9), (91) "
+              f"E' = {_fmt(numerical.E_storage)} Pa, tg(beta) = {_fmt(numerical.tan_delta)})")
     return 0
 
 
