@@ -16,7 +16,7 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 demo: $(STAMP)
-	$(PY) -m experiments.demo --out out/demo
+	$(VENV)/bin/msf-contact demo --out out/demo
 
 test: $(STAMP)
 	$(PY) -m pytest -q -n 2 tests

@@ -642,5 +642,11 @@ def main(argv: list[str] | None = None) -> int:
             raise SystemExit(EXIT_FAILURE) from None
 
 
+# run, report and demo (issue "experiments") register themselves on import
+from . import commands  # noqa: E402,F401
+
 if __name__ == "__main__":
-    sys.exit(main())
+    # `python -m experiments.cli`: use the package's module, where the commands registered
+    from experiments.cli import main as _main
+
+    sys.exit(_main())
