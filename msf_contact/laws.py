@@ -491,6 +491,13 @@ class SpringDashpotLaw(_HertzFamily):
         p.update(k=self.k, c=self.c)
         return p
 
+    def hertz_scale(self, v_n0, mass):
+        """Length scale [m]: the elastic amplitude v sqrt(m/k) of the linear
+        spring when k is given, else the Hertz x_max."""
+        if self.k is None:
+            return super().hertz_scale(v_n0, mass)
+        return np.asarray(v_n0) * np.sqrt(np.asarray(mass) / self.k)
+
     def onset(self, v_n0, mass):
         v = _arr(v_n0)
         m = _arr(mass, v.shape[0])
