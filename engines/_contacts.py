@@ -88,7 +88,8 @@ MAX_SEGMENTS = 10000
 # layout of the internal state vector y (k, NY)
 _X, _V, _S, _VC, _P = 0, slice(1, 4), slice(4, 7), slice(7, 10), slice(10, 13)
 _WEL, _WVI, _Q, _WT = 13, 14, 15, 16
-NY = 17
+_PI = slice(17, 20)  # int_0^t P dt' [N s^2]: first moment of the force, for the timing correction
+NY = 20
 
 
 def effective_inverse_inertia_free(m1, I1_world, r1, m2, I2_world, r2) -> np.ndarray:
@@ -154,6 +155,24 @@ def onset_speed_floor(law: ForceLaw, m_eff, a_n) -> np.ndarray:
     return np.maximum(np.sqrt(2.0 * a * x_s), V_ONSET_MIN)
 
 
+def _duration_estimate(law: ForceLaw, onset: dict, m, v) -> np.ndarray:
+    """Contact duration estimate [s] (n,) that sets the internal step.
+
+    MSF with omega_x from the collision itself (self-consistent, paper):
+    pi/omega_x (87). A linear spring (onset "k"): pi sqrt(m/k). Otherwise
+    the elastic Hertz duration with the law's elastic stiffness at x -> 0
+    (2/3 E' psi(0) of (29)); damping changes it by well under the factor 4
+    of margin in SUBSTEPS_PER_CONTACT.
+    """
+    if "omega_x" in onset and isinstance(getattr(law, "omega", None), str):
+        return math.pi / np.asarray(onset["omega_x"], dtype=float)
+    if "k" in onset:
+        return math.pi * np.sqrt(np.asarray(m, dtype=float) / np.asarray(onset["k"], dtype=float))
+    g = law.geom
+    k_p = float(law.psi(np.zeros(1))[0]) / (math.sqrt(g.R_a) + math.sqrt(g.R_b))
+    return cf.hertz_tau(np.asarray(m, dtype=float), np.asarray(v, dtype=float), law.moduli.E, g.R, k_p)
+
+
 def _tangent_basis(n):
     """Orthonormal t1, t2 (k, 3) with t1 x t2 = n."""
     e = np.where((np.abs(n[:, 0]) < 0.9)[:, None], np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
@@ -180,6 +199,11 @@ class _Batch:
     paper: np.ndarray  # (k,) bool
     onset: dict = field(default_factory=dict)  # key -> (k,)
 
+    @property
+    def plain_tangential(self) -> bool:
+        """The law uses ForceLaw.tangential_force unchanged (so it may be inlined)."""
+        return type(self.law).tangential_force is ForceLaw.tangential_force
+
     def sub(self, idx) -> "_Batch":
         return _Batch(self.law, self.n[idx], self.t1[idx], self.t2[idx], self.W[idx], self.Wc[idx],
                       self.a[idx], self.paper[idx], {k: v[idx] for k, v in self.onset.items()})
@@ -197,8 +221,17 @@ class _Batch:
         s = y[:, _S]
         s2 = np.stack([_dot(s, self.t1), _dot(s, self.t2)], -1)
         sd2 = np.stack([_dot(sd, self.t1), _dot(sd, self.t2)], -1)
-        Ft2, _ = law.tangential_force(x, s2, sd2, self.onset, Fn)
-        _, b = law.tangential_stiffness(x, self.onset)
+        if self.plain_tangential:
+            # ForceLaw.tangential_force inlined: one stiffness evaluation gives F_t and the power b s'^2
+            k, b = law.tangential_stiffness(x, self.onset)
+            Ft2 = -(b * sd2 + k * s2)
+            if law.mu is not None:
+                cap = law.mu * np.maximum(Fn, 0.0)
+                mag = np.hypot(Ft2[:, 0], Ft2[:, 1])
+                Ft2 = Ft2 * np.where(mag > cap, cap / np.where(mag > 0, mag, 1.0), 1.0)[:, None]
+        else:
+            Ft2, _ = law.tangential_force(x, s2, sd2, self.onset, Fn)
+            _, b = law.tangential_stiffness(x, self.onset)
         Ft = Ft2[:, :1] * self.t1 + Ft2[:, 1:] * self.t2
         f = Fn[:, None] * n + Ft
         dy = np.empty_like(y)
@@ -211,6 +244,7 @@ class _Batch:
         dy[:, _WVI] = (Fn - Fc) * xd
         dy[:, _Q] = np.sum(b * sd2 * sd2, axis=1)
         dy[:, _WT] = -_dot(Ft, vt)
+        dy[:, _PI] = y[:, _P]
         return dy, Fn, np.hypot(Ft2[:, 0], Ft2[:, 1])
 
     def rk4(self, y, h):
@@ -274,7 +308,8 @@ class ContactManager:
     keys are stored in ``record.inputs["body_in"]`` / ``["body_out"]``.
     """
 
-    def __init__(self, pairs: list[PairSpec], dt: float, engine: str, *, settle_rate: float = SETTLE_RATE):
+    def __init__(self, pairs: list[PairSpec], dt: float, engine: str, *, settle_rate: float = SETTLE_RATE,
+                 timing_correction: bool = True):
         if not pairs:
             raise ValueError("pairs is empty: give at least one PairSpec")
         dt = float(dt)
@@ -291,6 +326,7 @@ class ContactManager:
         self.dt = dt
         self.engine = str(engine)
         self.settle_rate = float(settle_rate)
+        self.timing_correction = bool(timing_correction)
         P = len(pairs)
         self._paper = np.array([p.tangential == "paper" for p in pairs])
         # group pairs by law object (vectorised per law)
@@ -345,6 +381,9 @@ class ContactManager:
         self.Q_t = z.copy()  #: tangential viscous work (80) [J]
         self.W_t = z.copy()  #: work done against the tangential force [J]
         self.outside = np.zeros(P, bool)
+        self.J = z3.copy()  #: timing-correction impulse applied in the last step, removed in the next [N s] (P, 3)
+        self.dv_corr = z3.copy()  #: W J: the engine's contact-point velocity offset it causes [m/s] (P, 3)
+        self.dvc_corr = z3.copy()  #: W_com J [m/s] (P, 3)
         self.body_in: list[dict | None] = [None] * P
 
     @property
@@ -353,8 +392,15 @@ class ContactManager:
 
     @property
     def active_pairs(self) -> np.ndarray:
-        """Pair indices in contact: an adapter must list them as candidates every step."""
+        """Pair indices in contact."""
         return np.flatnonzero(self.active)
+
+    @property
+    def required_pairs(self) -> np.ndarray:
+        """Pair indices an adapter must list as candidates in the next step,
+        whatever their gap: those in contact and those with a timing
+        correction to remove."""
+        return np.flatnonzero(self.active | np.any(self.J != 0.0, axis=1))
 
     def set_body_probe(self, probe: Callable[[int], dict] | None) -> None:
         """Install the adapter's body-level probe (see the class docstring)."""
@@ -423,11 +469,12 @@ class ContactManager:
             raise ValueError(f"kinematics.normal must be unit vectors, norms {nn!r}")
         n = n / nn[:, None] if k else n
         t0 = float(kin.t)
-        # contacts the adapter did not list: lost (cannot be integrated)
         listed = np.zeros(len(self.pairs), bool)
         listed[pair] = True
-        for p in np.flatnonzero(self.active & ~listed):
-            self._end_lost(int(p), t0)
+        missing = np.setdiff1d(self.required_pairs, pair)
+        if missing.size:
+            raise ValueError(f"kinematics.pair = {pair!r} lacks pairs {missing!r} that are in contact or have a "
+                             "timing correction to remove: list manager.required_pairs every step")
         force = np.zeros((k, 3))
         info = {"rows": k, "substeps": 0, "segments": 0, "onsets": 0, "ends": 0}
         for g, law in self._groups.items():
@@ -447,6 +494,9 @@ class ContactManager:
         t1, t2 = _tangent_basis(n)
         batch = _Batch(law, n, t1, t2, W, Wc, a, self._paper[p])
         act = self.active[p].copy()
+        # the engine's velocities include last step's timing correction: remove it
+        v = v - self.dv_corr[p]
+        vc = vc - self.dvc_corr[p]
         y = np.zeros((k, NY))
         # internal x for contacts in progress (relaxed toward the engine's when resting)
         x0 = np.where(act, self.x[p], x_eng)
@@ -496,7 +546,15 @@ class ContactManager:
         self.W_el[p], self.W_visc[p], self.Q_t[p], self.W_t[p] = y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT]
         self.phase[p] = np.where(self.xdot[p] < 0, 1, 0)
         self.outside[p] |= law.outside(np.maximum(y[:, _X], 0.0)) & in_c
-        return y[:, _P]
+        # timing correction: the engine applies the impulse as a constant force over the step;
+        # J = int (dt/2 - t) f dt / dt, added now and removed next step, moves the engine's
+        # position as if the impulse had its actual timing inside the step (zero velocity change)
+        J = y[:, _PI] / dt - 0.5 * y[:, _P] if self.timing_correction else np.zeros((k, 3))
+        impulse = y[:, _P] + J - self.J[p]
+        self.J[p] = J
+        self.dv_corr[p] = np.einsum("kij,kj->ki", W, J)
+        self.dvc_corr[p] = np.einsum("kij,kj->ki", Wc, J)
+        return impulse
 
     def _free_flight(self, y, fi, batch, rem):
         """Advance rows fi without contact force to the next onset (x >= 0 with
@@ -525,6 +583,7 @@ class ContactManager:
         y[fi, _X] = x0 + xd0 * tadv + c * tadv * tadv
         y[fi, _V] += a * tadv[:, None]
         y[fi, _VC] += a * tadv[:, None]
+        y[fi, _PI] += y[fi, _P] * tadv[:, None]
         if np.any(stays & np.isfinite(tc)):  # exactly at the turn: closing speed 0, not slightly negative
             j = fi[stays & np.isfinite(tc)]
             y[j, _V] -= (_dot(y[j, _V], batch.n[j]))[:, None] * batch.n[j]
@@ -554,12 +613,7 @@ class ContactManager:
             store[key][self._pos[pp]] = val
         batch.onset = {key: arr[self._pos[p]] for key, arr in store.items()}
         # duration estimate -> internal step
-        if "omega_x" in o:
-            tau_n = math.pi / np.asarray(o["omega_x"], dtype=float)
-        elif "k" in o:
-            tau_n = math.pi * np.sqrt(m / np.asarray(o["k"], dtype=float))
-        else:
-            tau_n = cf.hertz_tau(m, v_used, law.moduli.E, law.geom.R)
+        tau_n = _duration_estimate(law, o, m, v_used)
         x_est = cf.hertz_x_max(m, v_used, law.moduli.E, law.geom.R)
         o_new = {key: np.broadcast_to(np.asarray(val, dtype=float), (pp.size,)) for key, val in o.items()}
         k_t, _ = law.tangential_stiffness(x_est, o_new)
@@ -755,18 +809,6 @@ class ContactManager:
             if "omega1" in bi and lt > 0:
                 rec.spin_in = float(np.asarray(bi["omega1"], dtype=float) @ axis)
         self._pending.append((p, rec, axis if lt > 0 else None))
-
-    def _end_lost(self, p, t):
-        """An active contact the adapter stopped listing: record it as lost."""
-        y = np.zeros(NY)
-        y[_X] = self.x[p]
-        n = self.n_in[p]
-        y[_V] = -self.xdot[p] * n
-        y[_VC] = self.vc[p]
-        y[_WEL], y[_WVI], y[_Q], y[_WT] = self.W_el[p], self.W_visc[p], self.Q_t[p], self.W_t[p]
-        self._end(p, y, t, "lost", n)
-        self._pending[-1][1].outside_validity.append(
-            "the adapter stopped listing this pair while it was in contact: the contact was cut off")
 
     def _finish_pending(self):
         for p, rec, axis in self._pending:
