@@ -49,20 +49,19 @@ import math
 import mujoco
 import numpy as np
 
+from engines._contacts import closing_distance
 from engines._geometry import Detection, sphere_box_face, sphere_plane, sphere_sphere
 from engines.base import ContactForces, ContactKinematics, EngineAdapter, PairSpec
 
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times the
 #: distance the surfaces can close in one step (closing speed dt plus the
-#: external acceleration's share): a safety factor on a prediction that uses
-#: an estimated a_ext.
+#: external acceleration's share; engines._contacts.closing_distance): a
+#: safety factor on a prediction that uses an estimated a_ext. Pairs in
+#: contact are always listed.
 CANDIDATE_FACTOR = 2.0
 #: A law's curvature and the geoms' radii must agree to this relative
 #: tolerance (a law built for another ball would give wrong forces silently).
 RADIUS_RTOL = 1e-9
-#: A tangential velocity below this share of the relative speed gives no
-#: incidence direction (a normal impact: cor_t is None).
-TANGENT_FLOOR = 1e-9
 
 _GEOM_NAMES = {
     mujoco.mjtGeom.mjGEOM_PLANE: "plane", mujoco.mjtGeom.mjGEOM_HFIELD: "hfield",
@@ -90,8 +89,6 @@ class _Pair:
     last_v_rel: np.ndarray | None = None
     last_W: np.ndarray | None = None
     last_impulse: np.ndarray | None = None
-    # incidence snapshot for the record (first candidate step of a contact)
-    onset: dict | None = None
 
 
 def geom_type_name(model: mujoco.MjModel, g: int) -> str:
@@ -146,8 +143,11 @@ class MujocoAdapter(EngineAdapter):
         self._fresh = False  # the step's force is still to be computed
         self._installed = False
         self._apply: list[tuple[int, int, bool, np.ndarray, np.ndarray]] = []
-        self._n_records = 0
+        self.manager.set_body_probe(self._probe)
+        #: number of engine steps run through :meth:`step`
         self.steps = 0
+        #: the manager's step-averaged forces of the last step (None: no candidate)
+        self.last_forces: ContactForces | None = None
 
     # -- set-up ----------------------------------------------------------------
     def _geom(self, name, which: str, i: int) -> int:
@@ -212,7 +212,7 @@ class MujocoAdapter(EngineAdapter):
                 finally:
                     self._armed = False
                 self.steps += 1
-                self._finish_records()
+                self.manager.finished()  # completes the records of contacts ended in this step
 
     def __enter__(self):
         self._ctx = installed(self)
@@ -283,11 +283,9 @@ class MujocoAdapter(EngineAdapter):
             else:
                 a_ext = self._first_step_a_ext(p)
             p.last_v_rel, p.last_impulse = v_rel, np.zeros(3)
-            reach = CANDIDATE_FACTOR * (max(-float(v_rel @ n), 0.0) * dt
-                                        + 0.5 * float(np.linalg.norm(a_ext)) * dt * dt)
-            if x <= -reach:
+            reach = float(closing_distance(-float(v_rel @ n), -float(a_ext @ n), dt, CANDIDATE_FACTOR))
+            if x <= -reach and not self.manager.active[p.index]:
                 p.last_W = np.zeros((3, 3))
-                p.onset = None
                 continue
             # W = J M^-1 J^T, W_com = J_c M^-1 J^T
             MinvJT = np.zeros((3, m.nv))
@@ -298,11 +296,9 @@ class MujocoAdapter(EngineAdapter):
             Jc -= self._jacobian(p.body2, d.xipos[p.body2], self._jac2)
             v_com = Jc @ d.qvel
             W_com = Jc @ MinvJT.T
-            if p.onset is None:
-                p.onset = {"n": n.copy(), "v_com": v_com.copy(), "v_rel": v_rel.copy(),
-                           "w1": self._angular_velocity(p.body1)}
             rows.append((p.index, x, n, point, v_rel, v_com, W, W_com, a_ext))
         self._apply = []
+        self.last_forces = None
         if not rows:
             return
         cols = list(zip(*rows))
@@ -312,6 +308,7 @@ class MujocoAdapter(EngineAdapter):
             v_com_rel=np.array(cols[5]), W=np.array(cols[6]), W_com=np.array(cols[7]),
             a_ext=np.array(cols[8]), t=float(d.time))
         out: ContactForces = self.manager.step(kin)
+        self.last_forces = out
         for k, i in enumerate(np.asarray(out.pair, dtype=int)):
             F = np.array(out.force[k], dtype=float)
             if not np.any(F):
@@ -351,45 +348,16 @@ class MujocoAdapter(EngineAdapter):
         mujoco.mj_comVel(self.model, self.data)
 
     # -- records -----------------------------------------------------------------
-    def _finish_records(self) -> None:
-        """Fill the engine-side fields of the records finished in this step:
-        cor_t from the relative centre-of-mass tangential velocity, spin_in and
-        spin_out of body 1 about n x t (t: the incidence direction)."""
-        recs = self.manager.records
-        if len(recs) < self._n_records:  # popped by the caller
-            self._n_records = 0
-        for k in range(self._n_records, len(recs)):
-            recs[k] = self._complete(recs[k])
-        self._n_records = len(recs)
-
-    def _complete(self, rec):
-        i = int(rec.inputs.get("pair", 0)) if isinstance(rec.inputs, dict) else 0
+    def _probe(self, i: int) -> dict:
+        """Body-level quantities of pair i for the manager's records (at onset,
+        inside the hook, and after the step that ended the contact): body 1's
+        angular velocity in world axes (spin_in/spin_out about n x t) and the
+        relative centre-of-mass velocity [m/s]."""
         p = self._pairs[i]
-        self._refresh()
-        on = p.onset or {"n": np.array([0.0, 0.0, 1.0]), "v_com": np.zeros(3), "v_rel": np.zeros(3),
-                         "w1": np.zeros(3)}
-        n = on["n"]
-        v_in = on["v_com"]
-        vt_in = v_in - (v_in @ n) * n
-        scale = max(float(np.linalg.norm(v_in)), 1e-300)
-        if np.linalg.norm(vt_in) > TANGENT_FLOOR * scale:
-            t = vt_in / np.linalg.norm(vt_in)
-        else:
-            u = on["v_rel"] - (on["v_rel"] @ n) * n
-            t = u / np.linalg.norm(u) if np.linalg.norm(u) > TANGENT_FLOOR * scale else None
-        v_out = self._com_velocity(p.body1) - self._com_velocity(p.body2)
-        w_out = self._angular_velocity(p.body1)
-        fields = {"engine": self.name, "dt": self.timestep}
-        if t is not None:
-            axis = np.cross(n, t)
-            fields["spin_in"] = float(on["w1"] @ axis)
-            fields["spin_out"] = float(w_out @ axis)
-            vt0 = float(v_in @ t)
-            fields["cor_t"] = float(v_out @ t) / vt0 if abs(vt0) > TANGENT_FLOOR * scale else None
-        else:
-            fields["spin_in"], fields["spin_out"], fields["cor_t"] = 0.0, 0.0, None
-        p.onset = None
-        return dataclasses.replace(rec, **fields)
+        if not self._armed:
+            self._refresh()
+        return {"omega1": self._angular_velocity(p.body1),
+                "v_com_rel": self._com_velocity(p.body1) - self._com_velocity(p.body2)}
 
 
 # -- the one global hook ------------------------------------------------------------

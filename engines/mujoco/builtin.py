@@ -17,7 +17,9 @@ is ``dampratio``, whatever the mass and the impact speed: the restitution
 depends on the damping ratio alone. Contact ends when the (unilateral)
 force returns to zero, before the overlap does, so the linear-oscillator
 formula exp(-zeta pi / sqrt(1 - zeta^2)) (overlap-zero end) is only an
-approximation.
+approximation; :func:`linear_oscillator_cor` with end="force-zero" is the
+exact limit (measured at dt = timeconst/1000, Euler: within 0.09% for
+zeta = 0.1, 0.2, 0.4, where the overlap-zero formula is 2%, 9% and 43% low).
 
 The record: cor_n from the normal velocities before and after; tau from the
 steps in which the contact's normal force (``mj_contactForce``) is non-zero
@@ -33,7 +35,7 @@ import math
 import mujoco
 import numpy as np
 
-from msf_contact._validate import check_finite
+from msf_contact._validate import check_choice, check_finite
 from msf_contact.record import ImpactRecord
 from msf_contact.solver import Body, reduced_mass
 
@@ -206,9 +208,22 @@ def builtin_impact(
     )
 
 
-def linear_oscillator_cor(dampratio: float) -> float:
-    """COR of a linear spring-dashpot whose contact ends at zero overlap:
-    exp(-zeta pi / sqrt(1 - zeta^2)) (0 for zeta >= 1)."""
-    if dampratio >= 1.0:
-        return 0.0
-    return math.exp(-dampratio * math.pi / math.sqrt(1.0 - dampratio**2))
+def linear_oscillator_cor(dampratio: float, end: str = "overlap-zero") -> float:
+    """COR of a linear spring-dashpot x'' + 2 zeta w x' + w^2 x = 0 with damping
+    ratio zeta = ``dampratio`` < 1.
+
+    end = "overlap-zero": the contact ends when x returns to 0,
+    exp(-zeta pi / sqrt(1 - zeta^2)). end = "force-zero": it ends when the
+    force w^2 x + 2 zeta w x' returns to 0 (a unilateral contact, MuJoCo's),
+    at w_d t = atan2(-2 zeta sqrt(1-zeta^2), 1 - 2 zeta^2) + pi, with the
+    speed then |x'(t)| / x'(0)."""
+    check_choice("end", end, ("overlap-zero", "force-zero"))
+    z = float(dampratio)
+    if not 0.0 <= z < 1.0:
+        raise ValueError(f"dampratio = {dampratio!r} must be in [0, 1) for a bouncing oscillator")
+    wd = math.sqrt(1.0 - z * z)
+    if end == "overlap-zero":
+        return math.exp(-z * math.pi / wd)
+    th = math.atan2(-2.0 * z * wd, 1.0 - 2.0 * z * z) + math.pi  # w_d t at force zero
+    t = th / wd  # in units of 1/w_n
+    return -math.exp(-z * t) * (wd * math.cos(th) - z * math.sin(th)) / wd
