@@ -325,7 +325,7 @@ class PybulletAdapter(EngineAdapter):
     def _edge_margin(self, i, poses, grav) -> float:
         """Gap below which a sphere over a box edge is refused: a bound on the
         distance the surfaces can close within one step (inf while in contact)."""
-        if self._active(i):
+        if i in self._required():
             return math.inf
         ext = [float(s.size[0]) if s.kind == "sphere" else float(np.linalg.norm(s.pos) + np.linalg.norm(s.size))
                for s in self._shapes[i]]
@@ -340,8 +340,10 @@ class PybulletAdapter(EngineAdapter):
     def _free(self, b) -> float:
         return 1.0 if (not self._articulated(b) and not self._fixed(b)) else 0.0
 
-    def _active(self, i) -> bool:
-        return bool(self.manager.active[i])
+    def _required(self) -> set:
+        """Pairs the manager needs listed this step whatever their gap (in
+        contact, or with a timing correction to remove)."""
+        return set(int(i) for i in self.manager.required_pairs)
 
     # -- one step -------------------------------------------------------------
     def _step_once(self):
@@ -349,9 +351,10 @@ class PybulletAdapter(EngineAdapter):
         c = self.client
         cand = []
         W_of = {}
+        required = self._required()
         for i, x, nrm, point, v_rel, v_com_rel, a_ext, poses in self._kinematics():
             closing = float(closing_distance(-(v_rel @ nrm), -(a_ext @ nrm), dt, CANDIDATE_FACTOR))
-            if x > -closing or self._active(i):
+            if x > -closing or i in required:
                 W, Wc = self._inverse_inertia(i, poses, point)
                 W_of[i] = W
                 cand.append((i, x, nrm, point, v_rel, v_com_rel, W, Wc, a_ext))
