@@ -271,7 +271,13 @@ class MSFLaw(ForceLaw):
                 tab = _scaling.eps_table(tg, self.separation)(eps[in_table])
                 gam[in_table], tau[in_table], xm[in_table] = tab["gamma"], tab["tau"], tab["x_max"]
         for i in np.flatnonzero(~in_table):
-            r = _scaling.self_consistent(tg, float(eps[i]), self.separation)
+            try:
+                r = _scaling.self_consistent(tg, float(eps[i]), self.separation)
+            except ValueError:
+                raise ValueError(
+                    f"at v_n0 = {v[i]:.6g} m/s the approach reaches 2R = {2 * self.geom.R:.6g} m before maximum "
+                    "compression: k_p = sqrt(2 - x/R) of (15) has no real value beyond; outside the msf geometry"
+                ) from None
             gam[i], tau[i], xm[i] = r.gamma, r.tau, r.x_max
         omega = np.where(gam > 0, 3.0 * tg / np.where(gam > 0, gam, 1.0) / t0, math.pi / (tau * t0))
         return omega, x0 * xm

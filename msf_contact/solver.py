@@ -134,13 +134,17 @@ def simulate_impact(
     paper = tangential == "paper"
     vscale = max(abs(vt0), abs(spin) * R1, vn0)
 
-    def forces(x, vx, s, u):
+    mu = law.mu
+
+    def normal(x, vx):
         xa = np.array([max(x, 0.0)])
         Fn = float(law.contact_normal_force(xa, np.array([vx]), o1)[0])
         Fc = float(law.normal_force(xa, np.array([0.0]), o1)[0])
-        Ft, _ = law.tangential_force(xa, np.array([[s, 0.0]]), np.array([[u, 0.0]]), o1, np.array([Fn]))
-        k, b = law.tangential_stiffness(xa, o1)
-        return Fn, Fc, float(Ft[0, 0]), float(b[0, 0]) * u * u
+        return Fn, Fc
+
+    def kb(x):
+        k, b = law.tangential_stiffness(np.array([max(x, 0.0)]), o1)
+        return float(k[0, 0]), float(b[0, 0])
 
     def lever(x, R):
         return 0.0 if math.isinf(R) else R - 0.5 * max(x, 0.0)
@@ -148,13 +152,23 @@ def simulate_impact(
     def u_of(x, vt, w1, w2):
         return vt - w1 * lever(x, R1) - w2 * lever(x, R2)
 
-    def rhs(t, y):
-        x, vx, s, vt, w1, w2, Wc, Wb, Q = y
-        u = u_of(x, vt, w1, w2)
-        Fn, Fc, Ft, q = forces(x, vx, s, vt if paper else u)
-        return (vx, -Fn / m, vt if paper else u, Ft / m,
-                -lever(x, R1) * Ft / J1, -lever(x, R2) * Ft * inv_J2,
-                Fc * vx, (Fn - Fc) * vx, q)
+    def make_rhs(mode):
+        """mode 0: sticking (spring-dashpot of the law); +-1: sliding with
+        the Coulomb force -mode mu F_n (the spring displacement is held)."""
+
+        def rhs(t, y):
+            x, vx, s, vt, w1, w2, Wc, Wb, Q = y
+            u = vt if paper else u_of(x, vt, w1, w2)
+            Fn, Fc = normal(x, vx)
+            if mode == 0:
+                k, b = kb(x)
+                Ft, q, sdot = -(k * s + b * u), b * u * u, u
+            else:
+                Ft, q, sdot = -mode * mu * max(Fn, 0.0), 0.0, 0.0
+            return (vx, -Fn / m, sdot, Ft / m, -lever(x, R1) * Ft / J1, -lever(x, R2) * Ft * inv_J2,
+                    Fc * vx, (Fn - Fc) * vx, q)
+
+        return rhs
 
     def ev_turn(t, y):
         return y[1]
@@ -172,34 +186,96 @@ def simulate_impact(
         return float(law.separation_indicator(np.array([max(y[0], 0.0)]), np.array([y[1]]), o1)[0])
 
     ev_force.terminal, ev_force.direction = True, -1
+
     def ev_limit(t, y):
         return law.x_limit - y[0]
 
     ev_limit.terminal = True
-    events = [ev_turn, ev_overlap] + ([ev_force] if law.separation == "force-zero" else [])
-    if law.x_limit is not None:
-        events.append(ev_limit)
-    y0 = (0.0, vn0, 0.0, vt0, spin, 0.0, 0.0, 0.0, 0.0)
+
+    def ev_slip(t, y):  # sticking -> sliding where the trial force reaches mu F_n
+        x, vx, s, vt, w1, w2 = y[:6]
+        u = vt if paper else u_of(x, vt, w1, w2)
+        k, b = kb(x)
+        return mu * max(normal(x, vx)[0], 0.0) - abs(k * s + b * u)
+
+    ev_slip.terminal, ev_slip.direction = True, -1
+
+    def s_cap(x, vx):
+        """Elastic tangential displacement on the Coulomb cap, mu F_n / k [m]."""
+        k, _ = kb(x)
+        return mu * max(normal(x, vx)[0], 0.0) / k if k > 0 else 0.0
+
+    h_fd = 1e-7 * ts  # finite-difference step of d(s_cap)/dt along the motion
+
+    def make_ev_stick(mode):
+        """Sliding -> sticking where the slip rate mode (u - s_el') vanishes:
+        the elastic part s_el = mode s_cap follows the cap, the rest is slip."""
+
+        def ev(t, y):
+            x, vx, s, vt, w1, w2 = y[:6]
+            ax = -normal(x, vx)[0] / m
+            dcap = (s_cap(x + vx * h_fd, vx + ax * h_fd) - s_cap(max(x - vx * h_fd, 0.0), vx - ax * h_fd)) / (2 * h_fd)
+            return mode * (vt if paper else u_of(x, vt, w1, w2)) - dcap
+
+        ev.terminal, ev.direction = True, -1
+        return ev
+
     Escale = m * speed**2
     atol = np.array([xs, vn0, xs * vscale / vn0, vscale, vscale / R1, vscale / R1, Escale, Escale, Escale]) * ATOL_SCALED
-    sol = solve_ivp(rhs, (0.0, 1e3 * ts), y0, method="DOP853", rtol=RTOL, atol=atol,
-                    events=events, dense_output=True, first_step=1e-6 * ts)
-    if sol.status == -1:
-        raise RuntimeError(f"impact integration failed: {sol.message}")
-    if law.x_limit is not None and len(sol.t_events[-1]):
-        raise ValueError(f"the approach reached 2R = {law.x_limit:.6g} m: k_p = sqrt(2 - x/R) of (15) has no "
-                         "real value beyond; the impact is outside the msf geometry (use a lower speed)")
-    if len(sol.t_events[0]) == 0:
-        raise RuntimeError("the impact never reached maximum compression")
-    tau1 = float(sol.t_events[0][0])
-    y_turn = sol.y_events[0][0]
-    ends = [(float(sol.t_events[k][0]), name, sol.y_events[k][0])
-            for k, name in ((1, "overlap-zero"), (2, "force-zero"))
-            if k < len(sol.t_events) and events[k] in (ev_overlap, ev_force) and len(sol.t_events[k])]
-    if ends:
-        tau, ended_by, y_end = min(ends, key=lambda e: e[0])
+    y = np.array((0.0, vn0, 0.0, vt0, spin, 0.0, 0.0, 0.0, 0.0))
+    mode = 0
+    if mu is not None:  # initial mode: trial force against mu F_n just after onset
+        x_eps = 1e-9 * xs
+        k0, b0 = kb(x_eps)
+        u0 = vt0 if paper else u_of(0.0, vt0, spin, 0.0)
+        if abs(b0 * u0) > mu * max(normal(x_eps, vn0)[0], 0.0):
+            mode = int(np.sign(u0))
+    dense = _Piecewise()
+    t0, t_stop = 0.0, 1e3 * ts
+    tau1 = y_turn = None
+    tau = ended_by = y_end = None
+    for _segment in range(MAX_SEGMENTS):
+        events = [ev_turn, ev_overlap] + ([ev_force] if law.separation == "force-zero" else [])
+        if law.x_limit is not None:
+            events.append(ev_limit)
+        if mu is not None:
+            events.append(ev_slip if mode == 0 else make_ev_stick(mode))
+        sol = solve_ivp(make_rhs(mode), (t0, t_stop), y, method="DOP853", rtol=RTOL, atol=atol,
+                        events=events, dense_output=True, first_step=1e-6 * ts)
+        if sol.status == -1:
+            raise RuntimeError(f"impact integration failed: {sol.message}")
+        dense.add(t0, float(sol.t[-1]), sol.sol, mode)
+        if ev_limit in events and len(sol.t_events[events.index(ev_limit)]):
+            raise ValueError(f"the approach reached 2R = {law.x_limit:.6g} m: k_p = sqrt(2 - x/R) of (15) has no "
+                             "real value beyond; the impact is outside the msf geometry (use a lower speed)")
+        if tau1 is None and len(sol.t_events[0]):
+            tau1, y_turn = float(sol.t_events[0][0]), sol.y_events[0][0]
+        ends = [(float(sol.t_events[k][0]), name, sol.y_events[k][0])
+                for k, (ev, name) in enumerate(zip(events, [None] * len(events)))
+                for name in [{id(ev_overlap): "overlap-zero", id(ev_force): "force-zero"}.get(id(ev))]
+                if name and len(sol.t_events[k])]
+        if ends:
+            tau, ended_by, y_end = min(ends, key=lambda e: e[0])
+            break
+        if sol.status == 0:  # horizon reached: never separated
+            tau, ended_by, y_end = float(sol.t[-1]), "capture", sol.y[:, -1]
+            break
+        # a stick/slip switch
+        t0, y = float(sol.t_events[-1][0]), np.array(sol.y_events[-1][0])
+        x, vx, sv, vt, w1, w2 = y[:6]
+        u = vt if paper else u_of(x, vt, w1, w2)
+        if mode == 0:
+            k, b = kb(x)
+            trial = k * sv + b * u  # the force would be -trial; slide along its sign
+            mode = int(np.sign(trial)) if trial != 0.0 else (int(np.sign(u)) or 1)
+        else:
+            y[2] = mode * s_cap(x, vx) * (1.0 - 1e-9)
+            mode = 0
     else:
-        tau, ended_by, y_end = float(sol.t[-1]), "capture", sol.y[:, -1]
+        raise RuntimeError(f"more than {MAX_SEGMENTS} stick-slip transitions in one impact")
+    if tau1 is None:
+        raise RuntimeError("the impact never reached maximum compression")
+    sol = dense
     x_end, vx_end, s_end, vt_end, w1_end, w2_end, Wc_end, Wb_end, Q_end = y_end
     x_max = float(y_turn[0])
 
@@ -219,7 +295,9 @@ def simulate_impact(
     U_t = Y[3] if paper else Y[3] - Y[4] * np.where(np.isinf(R1), 0, R1 - 0.5 * X) - Y[5] * (
         0.0 if math.isinf(R2) else R2 - 0.5 * X)
     Ft_t, _ = law.tangential_force(X, np.stack([Y[2], np.zeros_like(X)], -1),
-                                   np.stack([U_t, np.zeros_like(X)], -1), o_n, Fn_t)
+                                   np.stack([U_t, np.zeros_like(X)], -1), o_n)
+    modes = dense.modes(tt)
+    Ft_t[:, 0] = np.where(modes == 0, Ft_t[:, 0], -modes * (mu or 0.0) * np.maximum(Fn_t, 0.0))
     k_pk = int(np.argmax(Fn_t))
     F_max = _refine_max(lambda t: float(law.contact_normal_force(
         np.array([max(float(sol.sol(t)[0]), 0.0)]), np.array([float(sol.sol(t)[1])]), o1)[0]),
@@ -268,6 +346,40 @@ def simulate_impact(
         inputs=_inputs(body1, body2, speed, angle_deg, spin, tangential, m, n_samples, tt, Fn_t, Ft_t, X),
         outside_validity=outside,
     )
+
+
+#: Guard against an endless chain of stick-slip switches in one impact.
+MAX_SEGMENTS = 200
+
+
+class _Piecewise:
+    """Dense output over the integration segments (stick and slip phases)."""
+
+    def __init__(self):
+        self.t0, self.t1, self.fns, self.mode = [], [], [], []
+
+    def add(self, t0, t1, fn, mode):
+        self.t0.append(t0)
+        self.t1.append(t1)
+        self.fns.append(fn)
+        self.mode.append(mode)
+
+    def _index(self, t):
+        return np.clip(np.searchsorted(np.asarray(self.t1), t, side="left"), 0, len(self.fns) - 1)
+
+    def sol(self, t):
+        t = np.asarray(t, dtype=float)
+        if t.ndim == 0:
+            return self.fns[int(self._index(t))](float(t))
+        out = np.empty((9, t.size))
+        idx = self._index(t)
+        for i in np.unique(idx):
+            sel = idx == i
+            out[:, sel] = self.fns[i](t[sel])
+        return out
+
+    def modes(self, t):
+        return np.asarray(self.mode)[self._index(np.asarray(t, dtype=float))]
 
 
 def _opt(d, key):

@@ -192,3 +192,55 @@ def test_properties_over_random_valid_inputs(mat, radius, speed_frac, angle, law
     again = simulate_impact(law, b1, b2, speed, angle_deg=angle)
     assert again.to_dict() == r.to_dict()
     assert np.isfinite(r.F_max) and r.F_max > 0
+
+
+# ----------------------------------------------------------- Coulomb cap ---
+#: Rigid-body sliding is the limit of a compliant contact that slides for
+#: the whole impact; the remaining difference is the lever arm R - x/2 and
+#: the O(x/R) variation of the contact point, ~1e-3 here.
+SLIDING_RTOL = 2e-3
+ALOX = Material("alumina", 3.8e11, 0.0, 0.23, 4000.0)
+
+
+def _alox(mu, law="hunt-crossley"):
+    pair = ContactPair(ALOX, RIGID, convention="hertz")
+    extra = {"cor": 0.98} if law == "hunt-crossley" else {}
+    return make_law(law, pair, Curvature.sphere_on_plane(0.0025), mu=mu, **extra)
+
+
+@pytest.mark.parametrize("theta", [45.0, 65.0, 80.0])
+def test_coulomb_cap_gross_sliding_matches_rigid_body(theta):
+    """Chung & Ooi test 4 regime: e_t = 1 - mu (1 + e_n)/tan(theta), w = 5 mu (1 + e_n) v_n/(2R)."""
+    mu, V, R = 0.092, 3.9, 0.0025
+    r = simulate_impact(_alox(mu), Body.sphere(ALOX, R), Body.half_space(RIGID), V, angle_deg=90.0 - theta)
+    th = math.radians(theta)
+    e = r.cor_n
+    assert r.cor_t == pytest.approx(1 - mu * (1 + e) / math.tan(th), rel=SLIDING_RTOL)
+    assert r.spin_out == pytest.approx(2.5 * mu * (1 + e) * V * math.cos(th) / R, rel=SLIDING_RTOL)
+
+
+def test_coulomb_cap_sticks_below_the_rolling_limit_and_never_creates_energy():
+    """Below tan(theta) = 7/2 mu (1 + e) sliding stops during the impact: the
+    result leaves the sliding formula (it would give a tangential speed below
+    rolling), and no tangential energy appears."""
+    mu, V, R = 0.092, 3.9, 0.0025
+    b1, b2 = Body.sphere(ALOX, R), Body.half_space(RIGID)
+    for theta in (5.0, 15.0, 25.0):
+        r = simulate_impact(_alox(mu), b1, b2, V, angle_deg=90.0 - theta)
+        assert r.W_diss_t >= -1e-9 * b1.mass * V**2
+        assert r.cor_t > 1 - mu * (1 + r.cor_n) / math.tan(math.radians(theta)) + 1e-3
+
+
+#: Even a huge mu slides in the last instant of a force-zero separation,
+#: where F_n -> 0 while the spring force does not: a ~1e-8 effect.
+LARGE_MU_RTOL = 1e-6
+
+
+def test_large_mu_is_no_cap():
+    pair = ContactPair(RUBBER, RIGID)
+    b1, b2 = Body.sphere(RUBBER, R), Body.half_space(RIGID)
+    free = simulate_impact(make_law("msf", pair, Curvature.sphere_on_plane(R)), b1, b2, 2.0, angle_deg=50.0)
+    capped = simulate_impact(make_law("msf", pair, Curvature.sphere_on_plane(R), mu=1e6), b1, b2, 2.0,
+                             angle_deg=50.0)
+    assert capped.cor_t == pytest.approx(free.cor_t, rel=LARGE_MU_RTOL)
+    assert capped.spin_out == pytest.approx(free.spin_out, rel=LARGE_MU_RTOL)
