@@ -642,8 +642,12 @@ def main(argv: list[str] | None = None) -> int:
             raise SystemExit(EXIT_FAILURE) from None
 
 
-# run, report and demo (issue "experiments") register themselves on import
+# run, report and demo (issue "experiments") register themselves on import;
+# the engine adapters' runners and flags register here (imported lazily)
 from . import commands  # noqa: E402,F401
+from .engine_cli import load_engines  # noqa: E402
+
+load_engines()
 
 if __name__ == "__main__":
     # `python -m experiments.cli`: use the package's module, where the commands registered
