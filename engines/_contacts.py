@@ -66,6 +66,10 @@ TANGENTIAL_MODES = ("contact-point", "paper")
 #: (h^1.5 over the first substep, where F ~ t^(1/2) for MSF): at 200 steps
 #: per duration the COR error is ~1e-6, far below the 0.02% acceptance.
 SUBSTEPS_PER_CONTACT = 4 * STEPS_PER_CONTACT_MIN
+#: Internal RK4 steps per half period pi/sqrt(k_t w_t) of the tangential
+#: oscillation (stiffness k_t at the Hertz x_max, w_t the largest tangential
+#: eigenvalue of W): RK4 error ~ (pi/100)^4 ~ 1e-6 per period.
+SUBSTEPS_PER_TANGENTIAL = 100
 #: Smallest onset speed used for the onset constants [m/s], with no external
 #: acceleration along the normal (with one, the floor is sqrt(2 a_n x_static)).
 V_ONSET_MIN = 1e-6
@@ -82,6 +86,8 @@ F_RATIO_FLOOR = 0.01
 #: Root finding on a substep: iterations and tolerance in substep fractions.
 ROOT_ITER = 60
 ROOT_TOL = 1e-13
+#: Steps a finished contact's record waits for its bodies' post-impact state.
+PENDING_MAX_STEPS = 3
 #: Guard on the number of onset/separation segments inside one engine step.
 MAX_SEGMENTS = 10000
 
@@ -345,7 +351,7 @@ class ContactManager:
         self._probe: Callable[[int], dict] | None = None
         self._init_state(P)
         self.records: list[ImpactRecord] = []
-        self._pending: list[tuple[int, ImpactRecord, np.ndarray]] = []
+        self._pending: list[list] = []  # [pair, record, spin axis, steps waited]
         self.last_step_info: dict[str, Any] = {}
 
     # ------------------------------------------------------------ state --
@@ -361,7 +367,7 @@ class ContactManager:
         self.v_n_in = z.copy()  #: closing speed at onset [m/s]
         self.v_n_used = z.copy()  #: onset speed given to law.onset (>= floor) [m/s]
         self.m_eff = z.copy()  #: 1/(n W n) at onset [kg]
-        self.tau_est = z.copy()  #: estimated duration [s]
+        self.tau_est = z.copy()  #: estimated duration of the normal impact [s]
         self.h = z.copy()  #: internal step [s]
         self.n_in = z3.copy()  #: normal at onset (P, 3)
         self.u_in = z3.copy()  #: contact-point tangential velocity at onset [m/s] (P, 3)
@@ -429,21 +435,24 @@ class ContactManager:
         }
 
     def pop_records(self) -> list[ImpactRecord]:
-        """Finished impacts since the last call, and forget them."""
+        """Completed impacts since the last call, and forget them (see ``pending_count``)."""
         self._finish_pending()
         out, self.records = self.records, []
         return out
 
-    def finished(self) -> list[ImpactRecord]:
-        """All finished impacts kept so far (completes pending ones)."""
-        self._finish_pending()
-        return self.records
+    @property
+    def pending_count(self) -> int:
+        """Finished contacts whose record waits for the body-level probe: with a
+        probe installed, a record is completed at the start of the second step
+        after the contact ended, once the timing correction has left the
+        engine's velocities (``spin_out`` is then the physical spin)."""
+        return len(self._pending)
 
     # ------------------------------------------------------------- step --
     def step(self, kin: ContactKinematics) -> ContactForces:
         """Integrate the candidate contacts over one engine step; return the
         step-averaged forces on body 1 at the contact points."""
-        self._finish_pending()
+        self._finish_pending(at_step_start=True)
         pair = np.asarray(kin.pair, dtype=int).reshape(-1)
         k = pair.shape[0]
         x = as_array(kin.x, ()).reshape(-1)
@@ -621,9 +630,8 @@ class ContactManager:
         w_t = np.linalg.eigvalsh(T @ W @ T)[:, -1]
         with np.errstate(divide="ignore"):
             tau_t = np.where(k_t.max(axis=1) * w_t > 0, math.pi / np.sqrt(k_t.max(axis=1) * w_t), np.inf)
-        tau = np.minimum(tau_n, tau_t)
-        self.tau_est[pp] = tau
-        self.h[pp] = tau / SUBSTEPS_PER_CONTACT
+        self.tau_est[pp] = tau_n
+        self.h[pp] = np.minimum(tau_n / SUBSTEPS_PER_CONTACT, tau_t / SUBSTEPS_PER_TANGENTIAL)
         # bookkeeping
         self.t_onset[pp] = t_abs
         self.v_n_in[pp] = vn
@@ -808,17 +816,38 @@ class ContactManager:
             rec.inputs["body_in"] = {k: _plain(v) for k, v in bi.items()}
             if "omega1" in bi and lt > 0:
                 rec.spin_in = float(np.asarray(bi["omega1"], dtype=float) @ axis)
-        self._pending.append((p, rec, axis if lt > 0 else None))
-
-    def _finish_pending(self):
-        for p, rec, axis in self._pending:
-            if self._probe is not None:
-                bo = dict(self._probe(p) or {})
-                rec.inputs["body_out"] = {k: _plain(v) for k, v in bo.items()}
-                if "omega1" in bo and axis is not None:
-                    rec.spin_out = float(np.asarray(bo["omega1"], dtype=float) @ axis)
+        if self._probe is None:
             self.records.append(rec)
-        self._pending = []
+        else:  # completed once the engine has applied the contact's last impulse (see pending_count)
+            self._pending.append([p, rec, axis if lt > 0 else None, 0])
+
+    def _finish_pending(self, at_step_start: bool = False):
+        """Complete the records whose pair has no timing correction in the engine
+        any more (its velocities are the physical ones): read the probe, move
+        them to ``records``. At a step start a record that waited
+        PENDING_MAX_STEPS steps (a new contact of the same pair keeps a
+        correction going) is completed without the body-level output."""
+        keep = []
+        for entry in self._pending:
+            if at_step_start:
+                entry[3] += 1
+            p, rec, axis, waited = entry
+            clean = waited >= 1 and not np.any(self.J[p])
+            if clean:
+                if self._probe is not None:
+                    bo = dict(self._probe(p) or {})
+                    rec.inputs["body_out"] = {k: _plain(v) for k, v in bo.items()}
+                    if "omega1" in bo and axis is not None:
+                        rec.spin_out = float(np.asarray(bo["omega1"], dtype=float) @ axis)
+                self.records.append(rec)
+            elif waited > PENDING_MAX_STEPS:
+                rec.inputs["body_out"] = None
+                rec.inputs["body_out_unavailable"] = (
+                    "the pair was in contact again before its bodies' post-impact state could be read")
+                self.records.append(rec)
+            else:
+                keep.append(entry)
+        self._pending = keep
 
 
 def _pc(law, x_m, o1):
