@@ -105,14 +105,16 @@ def run_impact(
 
 
 def run_until_separated(adapter: MujocoAdapter, max_steps: int, pair: int = 0) -> ImpactRecord:
-    """Step until the first contact of ``pair`` has ended (a record exists)
-    and body 1 moves away from body 2 along the contact normal; return that
-    record. RuntimeError after ``max_steps`` steps."""
+    """Step until the first contact of ``pair`` has ended (a record exists),
+    the manager has removed its last timing correction (the pair is no longer
+    in ``manager.required_pairs``, so the engine's velocities are the
+    contact's outgoing ones) and body 1 moves away from body 2 along the
+    contact normal; return that record. RuntimeError after ``max_steps``."""
     with installed(adapter):
         while adapter.steps < max_steps:
             adapter.step(min(CHUNK, max_steps - adapter.steps))
             recs = [r for r in adapter.records if int(r.inputs.get("pair", 0)) == pair]
-            if recs and adapter.separating(pair):
+            if recs and pair not in adapter.manager.required_pairs and adapter.separating(pair):
                 return recs[0]
     raise RuntimeError(f"the contact did not end within {max_steps} steps of dt = {adapter.timestep!r} s "
                        "(a capture, or a contact far longer than expected)")

@@ -56,8 +56,9 @@ from engines.base import ContactForces, ContactKinematics, EngineAdapter, PairSp
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times the
 #: distance the surfaces can close in one step (closing speed dt plus the
 #: external acceleration's share; engines._contacts.closing_distance): a
-#: safety factor on a prediction that uses an estimated a_ext. Pairs in
-#: contact are always listed.
+#: safety factor on a prediction that uses an estimated a_ext. The manager's
+#: required_pairs (in contact, or with a timing correction to remove) are
+#: always listed.
 CANDIDATE_FACTOR = 2.0
 #: A law's curvature and the geoms' radii must agree to this relative
 #: tolerance (a law built for another ball would give wrong forces silently).
@@ -212,7 +213,6 @@ class MujocoAdapter(EngineAdapter):
                 finally:
                     self._armed = False
                 self.steps += 1
-                self.manager.finished()  # completes the records of contacts ended in this step
 
     def __enter__(self):
         self._ctx = installed(self)
@@ -272,6 +272,7 @@ class MujocoAdapter(EngineAdapter):
         m, d = self.model, self.data
         dt = self.timestep
         rows = []
+        required = set(int(i) for i in self.manager.required_pairs)  # in contact, or a correction to remove
         for p in self._pairs:
             det = self._geometry(p)
             x, n, point = float(det.x[0]), det.normal[0], det.point[0]
@@ -284,7 +285,7 @@ class MujocoAdapter(EngineAdapter):
                 a_ext = self._first_step_a_ext(p)
             p.last_v_rel, p.last_impulse = v_rel, np.zeros(3)
             reach = float(closing_distance(-float(v_rel @ n), -float(a_ext @ n), dt, CANDIDATE_FACTOR))
-            if x <= -reach and not self.manager.active[p.index]:
+            if x <= -reach and p.index not in required:
                 p.last_W = np.zeros((3, 3))
                 continue
             # W = J M^-1 J^T, W_com = J_c M^-1 J^T
@@ -298,17 +299,19 @@ class MujocoAdapter(EngineAdapter):
             W_com = Jc @ MinvJT.T
             rows.append((p.index, x, n, point, v_rel, v_com, W, W_com, a_ext))
         self._apply = []
-        self.last_forces = None
-        if not rows:
-            return
-        cols = list(zip(*rows))
+        # the manager is called every step, also without candidates (it completes records then)
+        cols = list(zip(*rows)) if rows else [()] * 9
         kin = ContactKinematics(
             pair=np.array(cols[0], dtype=int), x=np.array(cols[1], dtype=float),
-            normal=np.array(cols[2]), point=np.array(cols[3]), v_rel=np.array(cols[4]),
-            v_com_rel=np.array(cols[5]), W=np.array(cols[6]), W_com=np.array(cols[7]),
-            a_ext=np.array(cols[8]), t=float(d.time))
+            normal=np.reshape(np.array(cols[2], dtype=float), (-1, 3)),
+            point=np.reshape(np.array(cols[3], dtype=float), (-1, 3)),
+            v_rel=np.reshape(np.array(cols[4], dtype=float), (-1, 3)),
+            v_com_rel=np.reshape(np.array(cols[5], dtype=float), (-1, 3)),
+            W=np.reshape(np.array(cols[6], dtype=float), (-1, 3, 3)),
+            W_com=np.reshape(np.array(cols[7], dtype=float), (-1, 3, 3)),
+            a_ext=np.reshape(np.array(cols[8], dtype=float), (-1, 3)), t=float(d.time))
         out: ContactForces = self.manager.step(kin)
-        self.last_forces = out
+        self.last_forces = out if rows else None
         for k, i in enumerate(np.asarray(out.pair, dtype=int)):
             F = np.array(out.force[k], dtype=float)
             if not np.any(F):
