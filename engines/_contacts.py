@@ -22,27 +22,46 @@ for tau1, x_max and the split of the works) and where it ends (force-zero:
 the separation indicator B < 0 in restitution; or x returns to 0), by
 root finding on a partial RK4 step from the substep's start (as accurate as a
 full step). After a separation the free relative motion continues for the
-rest of the step and a new contact may begin (micro-bounces). The engine
-gets the impulse P = int f dt of the step as the force P/dt at the contact
-point; with the engine's semi-implicit Euler this reproduces the internal
-velocity at the end of the step exactly (W and a_ext constant over the step).
+rest of the step and a new contact may begin (micro-bounces).
+
+Forces. The engine gets the impulse P = int f dt of the step as the force
+P/dt at the contact point; with W and a_ext constant over the step this
+reproduces the internal velocity at the end of the step exactly, in any
+integrator that holds an applied force constant over the step. A constant
+force moves the engine's bodies as if the impulse were centred on mid-step;
+the actual impulse is not (a bounce early in a step should move the body
+back for the rest of it). Timing correction: an extra impulse
+J = int (dt/2 - t) f dt / dt is added in this step and removed in the next
+one: zero net velocity change, a position change dt W J that puts the
+engine's bodies where the impulse's timing puts them. Without it the
+engine's position after an impact depends on where in the step the impact
+fell (by up to v dt), gravity turns that into +-% of energy per bounce, and
+a settled body rests off its static overlap. The price: for one step after
+a contact step the engine's velocities carry W J (``dv_corr``), which the
+manager removes from what it reads; a finished contact's record is
+completed (body probe, spin_out) once that step is over.
 
 Authority. While a contact lasts, its approach x is advanced here and the
-engine's x is not used (the engine's position lags the internal one by
-O(v dt) when a step-averaged force is applied); only v, n, W, a_ext are
-read from the engine at each step start. The tangential displacement s is
-kept as a world vector in the contact plane, re-projected onto the current
-tangent plane each step and rescaled to its length (DEM practice).
+engine's x is not used (with a semi-implicit integrator the engine's
+position still leads the internal one by (dt/2) times the velocity change
+since onset); only v, n, W, a_ext are read from the engine at each step
+start. The tangential displacement s is kept as a world vector in the
+contact plane, re-projected onto the current tangent plane each step and
+rescaled to its length (DEM practice).
 
 Resting contacts. A contact that lasts longer than SETTLE_AFTER_DURATIONS
-contact durations is a resting (or rolling) contact: the engine's position
-offset accumulated by the step-averaged force would then stay for ever, so
-its internal x is relaxed toward the engine's x by ``settle_rate`` per step;
-the engine body then rests at the static overlap. Onset speeds below
-``v_floor`` (see :func:`onset_speed_floor`) are raised to it for the
-onset constants only (omega_x, Hunt-Crossley chi, ...): a contact that
+estimated durations is a resting (or rolling) contact: its internal x is
+relaxed toward the engine's by ``settle_rate`` per step, so the remaining
+offset (the lead above) vanishes and the engine body rests at the static
+overlap. Onset speeds below :func:`onset_speed_floor` are raised to it for
+the onset constants only (omega_x, Hunt-Crossley chi, ...): a contact that
 begins at a vanishing closing speed would otherwise get a vanishing omega_x
 and an unbounded damping E''/omega_x.
+
+Known limits. W is frozen over a step at the step-start geometry: the
+lever arm of a sub-cycled impact is R, not the mid-overlap R - x/2 the
+reference solver uses (an O(x_max/R) difference in spin and cor_t, 0.3-1 %
+for a PTFE ball at 1 m/s). One contact per pair (smooth convex shapes).
 """
 
 from __future__ import annotations
