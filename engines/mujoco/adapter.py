@@ -6,19 +6,24 @@ What it does each engine step (:meth:`MujocoAdapter.step` runs ``mj_step``):
 1. At the first call of the passive hook inside the step (positions,
    velocities, the inertia matrix and its factorisation are then current),
    read for every pair the contact of the two smooth shapes (sphere-plane,
-   sphere-box face, sphere-sphere): approach x, normal n (body 2 -> body 1),
-   the contact point mid-overlap, and the translational point Jacobians of
-   both bodies at that point (``mj_jac``), J = J_1 - J_2. From them
+   sphere-box face, sphere-sphere; :mod:`engines._geometry`): approach x,
+   normal n (body 2 -> body 1), the contact point mid-overlap, and the
+   translational point Jacobians of both bodies (``mj_jac``), each at its
+   own surface point (the two differ across a gap), J = J_1 - J_2. From them
    v_rel = J qvel, W = J M^-1 J^T (``mj_solveM``), and with the centre-of-mass
    Jacobians J_c, v_com_rel = J_c qvel, W_com = J_c M^-1 J^T. This works for
    links of articulated chains as for free bodies.
 2. Hand the pairs with x > -(closing distance in one step) to the contact
    manager ONCE per step; it integrates the law over the step (sub-cycling)
    and returns the step-averaged force.
-3. Add that force at the contact point to ``qfrc_passive`` with
-   ``mj_applyFT`` (+F on body 1, -F on body 2; a body welded to the world
-   takes none) in EVERY call of the hook during the step: RK4 calls it four
-   times per step, and all stages see the same force.
+3. Add that force to ``qfrc_passive`` with ``mj_applyFT`` (+F on body 1 at
+   its point, -F on body 2 at its point; a body welded to the world takes
+   none) in EVERY call of the hook during the step: RK4 calls it four
+   times per step, and all stages see the same force and the same moment
+   (the lever arm from each body's centre of mass is held fixed in world
+   axes, as the contact point stays under the ball and the manager's W
+   assumes; a world-fixed point would give the moved stages a spurious
+   moment F_n times the distance travelled, several % of the spin at 2 ms).
 
 MuJoCo's own contact for a managed pair must be off. The one mechanism used
 here is ``<contact><exclude body1=... body2=.../>`` between the two bodies
@@ -70,7 +75,8 @@ _GEOM_NAMES = {
     mujoco.mjtGeom.mjGEOM_ELLIPSOID: "ellipsoid", mujoco.mjtGeom.mjGEOM_CYLINDER: "cylinder",
     mujoco.mjtGeom.mjGEOM_BOX: "box", mujoco.mjtGeom.mjGEOM_MESH: "mesh", mujoco.mjtGeom.mjGEOM_SDF: "sdf",
 }
-_SECOND = ("sphere", "plane", "box")  # what body 2 may be; body 1 is a sphere
+_SECOND = ("sphere", "plane", "box")
+_ZERO3 = np.zeros(3)  # what body 2 may be; body 1 is a sphere
 
 
 @dataclasses.dataclass
@@ -143,7 +149,9 @@ class MujocoAdapter(EngineAdapter):
         self._armed = False  # inside self.step's mj_step
         self._fresh = False  # the step's force is still to be computed
         self._installed = False
-        self._apply: list[tuple[int, int, bool, np.ndarray, np.ndarray]] = []
+        # (body1, body2, body2 fixed, force on body 1 [N], lever arms [m] (3,) from each
+        # body's centre of mass to its contact point, world axes, at the step start)
+        self._apply: list[tuple[int, int, bool, np.ndarray, np.ndarray, np.ndarray]] = []
         self.manager.set_body_probe(self._probe)
         #: number of engine steps run through :meth:`step`
         self.steps = 0
@@ -229,10 +237,13 @@ class MujocoAdapter(EngineAdapter):
         if self._fresh:
             self._fresh = False
             self._compute()
-        for b1, b2, fixed2, F, point in self._apply:
-            mujoco.mj_applyFT(model, data, F, np.zeros(3), point, b1, data.qfrc_passive)
+        # the lever arm from each body's centre of mass is held fixed in world axes
+        # over the step (the contact point stays under the ball; the manager's W
+        # assumes it), so every RK4 stage gets the same force and moment
+        for b1, b2, fixed2, F, r1, r2 in self._apply:
+            mujoco.mj_applyFT(model, data, F, _ZERO3, data.xipos[b1] + r1, b1, data.qfrc_passive)
             if not fixed2:
-                mujoco.mj_applyFT(model, data, -F, np.zeros(3), point, b2, data.qfrc_passive)
+                mujoco.mj_applyFT(model, data, -F, _ZERO3, data.xipos[b2] + r2, b2, data.qfrc_passive)
 
     def _geometry(self, p: _Pair) -> Detection:
         """The contact of pair p from the current poses (engines._geometry);
@@ -272,12 +283,15 @@ class MujocoAdapter(EngineAdapter):
         m, d = self.model, self.data
         dt = self.timestep
         rows = []
+        points = {}
         required = set(int(i) for i in self.manager.required_pairs)  # in contact, or a correction to remove
         for p in self._pairs:
             det = self._geometry(p)
             x, n, point = float(det.x[0]), det.normal[0], det.point[0]
-            J = self._jacobian(p.body1, point, self._jac).copy()
-            J -= self._jacobian(p.body2, point, self._jac2)
+            # each body's Jacobian at its own surface point (they differ across a gap)
+            p1, p2 = det.point1[0].copy(), det.point2[0].copy()
+            J = self._jacobian(p.body1, p1, self._jac).copy()
+            J -= self._jacobian(p.body2, p2, self._jac2)
             v_rel = J @ d.qvel
             if p.last_v_rel is not None:
                 a_ext = (v_rel - p.last_v_rel - p.last_W @ p.last_impulse) / dt
@@ -298,6 +312,7 @@ class MujocoAdapter(EngineAdapter):
             v_com = Jc @ d.qvel
             W_com = Jc @ MinvJT.T
             rows.append((p.index, x, n, point, v_rel, v_com, W, W_com, a_ext))
+            points[p.index] = (p1, p2)
         self._apply = []
         # the manager is called every step, also without candidates (it completes records then)
         cols = list(zip(*rows)) if rows else [()] * 9
@@ -318,7 +333,8 @@ class MujocoAdapter(EngineAdapter):
                 continue
             p = self._pairs[i]
             p.last_impulse = F * dt
-            self._apply.append((p.body1, p.body2, p.fixed2, F, np.array(out.point[k], dtype=float)))
+            p1, p2 = points[int(i)]
+            self._apply.append((p.body1, p.body2, p.fixed2, F, p1 - d.xipos[p.body1], p2 - d.xipos[p.body2]))
 
     def _angular_velocity(self, body: int) -> np.ndarray:
         res = np.zeros(6)
@@ -338,9 +354,9 @@ class MujocoAdapter(EngineAdapter):
         p = self._pairs[i]
         self._refresh()
         det = self._geometry(p)
-        n, point = det.normal[0], det.point[0]
-        J = self._jacobian(p.body1, point, self._jac).copy()
-        J -= self._jacobian(p.body2, point, self._jac2)
+        n = det.normal[0]
+        J = self._jacobian(p.body1, det.point1[0], self._jac).copy()
+        J -= self._jacobian(p.body2, det.point2[0], self._jac2)
         return float((J @ self.data.qvel) @ n) > 0.0
 
     def _refresh(self) -> None:
