@@ -361,32 +361,33 @@ class PybulletAdapter(EngineAdapter):
             self._last_v_rel[i] = v_rel
             self._last_dv_own[i] = 0.0
             self._have_last[i] = True
-        if cand:
-            kin = ContactKinematics(
-                pair=np.array([r[0] for r in cand], int),
-                x=np.array([r[1] for r in cand], float),
-                normal=np.array([r[2] for r in cand], float),
-                point=np.array([r[3] for r in cand], float),
-                v_rel=np.array([r[4] for r in cand], float),
-                v_com_rel=np.array([r[5] for r in cand], float),
-                W=np.array([r[6] for r in cand], float),
-                W_com=np.array([r[7] for r in cand], float),
-                a_ext=np.array([r[8] for r in cand], float),
-                t=self.time,
-            )
-            out = self.manager.step(kin)
-            for k, i in enumerate(np.asarray(out.pair, int)):
-                F = np.asarray(out.force[k], float)
-                if not np.any(F):
-                    continue
-                P = np.asarray(out.point[k], float)
-                (u1, l1), (u2, l2) = self._bodies[i]
-                if not self._fixed((u1, l1)):
-                    pb.applyExternalForce(u1, l1, F.tolist(), P.tolist(), pb.WORLD_FRAME, physicsClientId=c)
-                if not self._fixed((u2, l2)):
-                    pb.applyExternalForce(u2, l2, (-F).tolist(), P.tolist(), pb.WORLD_FRAME, physicsClientId=c)
-                self._last_dv_own[i] = W_of[i] @ (F * dt)
-                self.impulse[i] += F * dt
+        # the manager steps every engine step, also with no candidate: it
+        # completes finished records once their timing correction is gone
+        kin = ContactKinematics(
+            pair=np.array([r[0] for r in cand], int),
+            x=np.array([r[1] for r in cand], float),
+            normal=np.array([r[2] for r in cand], float).reshape(-1, 3),
+            point=np.array([r[3] for r in cand], float).reshape(-1, 3),
+            v_rel=np.array([r[4] for r in cand], float).reshape(-1, 3),
+            v_com_rel=np.array([r[5] for r in cand], float).reshape(-1, 3),
+            W=np.array([r[6] for r in cand], float).reshape(-1, 3, 3),
+            W_com=np.array([r[7] for r in cand], float).reshape(-1, 3, 3),
+            a_ext=np.array([r[8] for r in cand], float).reshape(-1, 3),
+            t=self.time,
+        )
+        out = self.manager.step(kin)
+        for k, i in enumerate(np.asarray(out.pair, int)):
+            F = np.asarray(out.force[k], float)
+            if not np.any(F):
+                continue
+            P = np.asarray(out.point[k], float)
+            (u1, l1), (u2, l2) = self._bodies[i]
+            if not self._fixed((u1, l1)):
+                pb.applyExternalForce(u1, l1, F.tolist(), P.tolist(), pb.WORLD_FRAME, physicsClientId=c)
+            if not self._fixed((u2, l2)):
+                pb.applyExternalForce(u2, l2, (-F).tolist(), P.tolist(), pb.WORLD_FRAME, physicsClientId=c)
+            self._last_dv_own[i] = W_of[i] @ (F * dt)
+            self.impulse[i] += F * dt
         pb.stepSimulation(physicsClientId=c)
         self._steps += 1
 
@@ -396,12 +397,6 @@ class PybulletAdapter(EngineAdapter):
         body 1's angular velocity gives spin_in/spin_out about n x t."""
         b1, _ = self._bodies[i]
         return {"omega1": self._pose(b1).w}
-
-    @property
-    def records(self) -> list:
-        """Finished impacts (msf_contact.ImpactRecord), oldest first, with the
-        engine's spin (the manager completes them when they are read)."""
-        return self.manager.finished()
 
     @property
     def time(self) -> float:
