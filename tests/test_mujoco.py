@@ -41,7 +41,7 @@ IMPULSE_RTOL = 1e-9
 #: The paddle (articulated, driven hinge) against the reference solver with
 #: the paddle's effective mass I/r^2 at the hit point: the actuator's spring
 #: (kp = 1 N m/rad) and the face's rotation during the contact are outside
-#: the reference model; they shift the COR by ~1e-5 (measured), kept 10x.
+#: the reference model; they shift the COR by 4e-5 (measured), kept 25x.
 PADDLE_RTOL = 1e-3
 #: MuJoCo's soft contact with a constant impedance is a linear oscillator:
 #: the COR does not depend on the impact speed (measured to ~1e-12).

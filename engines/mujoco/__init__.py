@@ -14,7 +14,6 @@ from __future__ import annotations
 import math
 
 import mujoco
-import numpy as np
 
 from msf_contact import closed_forms as cf
 from msf_contact._validate import check_choice

@@ -13,9 +13,10 @@ What it does each engine step (:meth:`MujocoAdapter.step` runs ``mj_step``):
    v_rel = J qvel, W = J M^-1 J^T (``mj_solveM``), and with the centre-of-mass
    Jacobians J_c, v_com_rel = J_c qvel, W_com = J_c M^-1 J^T. This works for
    links of articulated chains as for free bodies.
-2. Hand the pairs with x > -(closing distance in one step) to the contact
-   manager ONCE per step; it integrates the law over the step (sub-cycling)
-   and returns the step-averaged force.
+2. Hand the pairs with x > -(closing distance in one step), and the
+   manager's ``required_pairs``, to the contact manager ONCE per step (also
+   when there are none: it completes records then); it integrates the law
+   over the step (sub-cycling) and returns the step-averaged force.
 3. Add that force to ``qfrc_passive`` with ``mj_applyFT`` (+F on body 1 at
    its point, -F on body 2 at its point; a body welded to the world takes
    none) in EVERY call of the hook during the step: RK4 calls it four
@@ -31,6 +32,10 @@ here is ``<contact><exclude body1=... body2=.../>`` between the two bodies
 model in which MuJoCo would still make a contact for the pair (contype /
 conaffinity match without an exclude, or an explicit ``<pair>``), rather
 than editing the caller's model behind its back.
+
+Records are the manager's (:class:`msf_contact.ImpactRecord`); its body
+probe reads body 1's angular velocity (spin_in, spin_out about n x t) and
+the relative centre-of-mass velocity from MuJoCo.
 
 The relative acceleration of the contact points from everything but this
 contact (``a_ext``) is an estimate: the change of v_rel over the last step
@@ -400,7 +405,10 @@ def installed(adapter: MujocoAdapter):
     duration of the block; restore the previous hook in ``finally`` (also
     when the step or the hook raises). Several adapters (different MjData)
     may be installed at once; the previous hook is restored when the last
-    one leaves."""
+    one leaves. Build models before entering: MuJoCo 4.0's Python bindings
+    fail to compile a model (``MjModel.from_xml_string``: "Python exception
+    raised") while any Python ``mjcb_passive`` is installed, since the
+    compiler calls the hook with a data object that has no Python wrapper."""
     key = id(adapter.data)
     if key in _REGISTRY:
         raise ValueError("an adapter for this MjData is already installed")
