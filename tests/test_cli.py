@@ -318,11 +318,11 @@ def test_registered_engine_and_command_are_reachable(capsys, monkeypatch):
         return cli.run_reference(setup)
 
     monkeypatch.setitem(cli.ENGINES, "fake", cli.Engine(
-        fake_engine, "test engine", lambda p: p.add_argument("--dt", type=float, default=1e-3)))
+        fake_engine, "test engine", lambda p: p.add_argument("--fake-step", type=float, default=1e-3)))
     monkeypatch.setitem(cli.COMMANDS, "hello", cli.Command(
         "say hello", lambda p: p.add_argument("--who", default="world"), lambda a: print(f"hello {a.who}") or 0))
-    d = run_json(capsys, "impact", "--engine", "fake", "--dt", "2e-3")
-    assert seen["setup"].args.dt == 2e-3 and d["inputs"]["engine"] == "fake"
+    d = run_json(capsys, "impact", "--engine", "fake", "--fake-step", "2e-3")
+    assert seen["setup"].args.fake_step == 2e-3 and d["inputs"]["engine"] == "fake"
     assert set(CONTRACT_KEYS) <= set(d)
     code, out, _ = run(capsys, "hello", "--who", "MSF")
     assert (code, out) == (0, "hello MSF\n")

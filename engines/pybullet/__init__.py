@@ -6,6 +6,30 @@
 from __future__ import annotations
 
 import math
+import os
+import sys
+
+
+def _import_pybullet_quietly():
+    """pybullet prints its build time on stdout (from C) when imported; send
+    that to stderr so `msf-contact impact --json` prints JSON only."""
+    if "pybullet" in sys.modules:
+        return
+    sys.stdout.flush()
+    try:
+        saved = os.dup(1)
+    except OSError:  # no file descriptor 1 (embedded interpreters)
+        import pybullet  # noqa: F401
+        return
+    try:
+        os.dup2(2, 1)
+        import pybullet  # noqa: F401
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
+
+
+_import_pybullet_quietly()
 
 from engines.base import PairSpec, register_engine
 from msf_contact.laws import ForceLaw
