@@ -15,15 +15,23 @@ What an adapter (:class:`EngineAdapter`) must do:
    force is counted twice.
 3. Each engine step, fill a :class:`ContactKinematics` for every pair that
    is in contact or will close its gap within the step (x > -closing
-   distance), with the inverse effective inertia at the contact point from
-   the engine's own inertia (works for links of articulated chains).
-4. Hand it to the manager and apply the returned :class:`ContactForces`
-   (step-averaged, equal and opposite, at the contact point; a fixed body
-   takes none) through the engine's own mechanism (MuJoCo: passive forces
-   in ``mjcb_passive``; pybullet: ``applyExternalForce``), identical for
-   every integrator stage inside one step.
+   distance, ``engines._contacts.closing_distance``) plus every pair in
+   ``manager.required_pairs`` (in contact, or with a timing correction still
+   to remove), with the inverse effective inertia at the contact point from
+   the engine's own inertia (works for links of articulated chains). Across
+   a gap, each body's Jacobian is taken at its own surface point
+   (``Detection.point1``/``point2``).
+4. Call ``manager.step`` once per engine step, also when there is no
+   candidate (it completes finished records), and apply the returned
+   :class:`ContactForces` (step-averaged, equal and opposite; a fixed body
+   takes none) through the engine's own mechanism (MuJoCo: passive forces in
+   ``mjcb_passive``; pybullet: ``applyExternalForce``), identical for every
+   integrator stage inside one step. The forces include the manager's timing
+   correction, so for one step after a contact the engine's velocities are
+   offset; read post-impact results from the records.
 5. Expose the finished impacts as :class:`msf_contact.ImpactRecord` (same
-   format as the reference solver) in ``records``.
+   format as the reference solver) in ``records``; a record appears about
+   two steps after its contact ends (``manager.pending_count``).
 
 Conventions: world frame, SI units; the contact normal ``n`` points from
 body 2 toward body 1; ``x`` is the approach (overlap) of the undeformed
