@@ -389,6 +389,8 @@ class ContactManager:
         self.tau_est = z.copy()  #: estimated duration of the normal impact [s]
         self.h = z.copy()  #: internal step [s]
         self.n_in = z3.copy()  #: normal at onset (P, 3)
+        self.p_in = z3.copy()  #: contact point at the start of the onset step [m] (P, 3)
+        self._point = z3.copy()  #: contact points of the current step's rows [m] (P, 3)
         self.u_in = z3.copy()  #: contact-point tangential velocity at onset [m/s] (P, 3)
         self.vc_in = z3.copy()  #: centre-of-mass relative tangential velocity at onset [m/s] (P, 3)
         self.vc = z3.copy()  #: centre-of-mass relative velocity at the end of the last step [m/s] (P, 3)
@@ -504,6 +506,7 @@ class ContactManager:
             raise ValueError(f"kinematics.pair = {pair!r} lacks pairs {missing!r} that are in contact or have a "
                              "timing correction to remove: list manager.required_pairs every step")
         force = np.zeros((k, 3))
+        self._point[pair] = point
         info = {"rows": k, "substeps": 0, "segments": 0, "onsets": 0, "ends": 0}
         for g, law in self._groups.items():
             rows = np.flatnonzero(self._group_of[pair] == g)
@@ -657,6 +660,7 @@ class ContactManager:
         self.v_n_used[pp] = v_used
         self.m_eff[pp] = m
         self.n_in[pp] = n
+        self.p_in[pp] = self._point[pp]
         self.u_in[pp] = v - _dot(v, n)[:, None] * n
         vc = y[new, _VC]
         self.vc_in[pp] = vc - _dot(vc, n)[:, None] * n
@@ -822,6 +826,7 @@ class ContactManager:
                 "v_t_in": lu, "mass_effective": float(self.m_eff[p]), "tangential": self.pairs[p].tangential,
                 "internal_step": float(self.h[p]), "tau_estimate": float(self.tau_est[p]),
                 "x_max_overall": float(self.x_max[p]), "onset": onset,
+                "point": self.p_in[p].tolist(), "normal": self.n_in[p].tolist(),
             },
             outside_validity=outside,
         )
