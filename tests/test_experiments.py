@@ -165,3 +165,17 @@ def test_shipped_configs_load():
     for p in sorted((ROOT / "experiments" / "configs").glob("*.toml")):
         scenario, cfg, _ = runner.load_config(p)
         assert scenario.cells(cfg)
+
+
+def test_engine_options_apply_to_their_engine_only(tmp_path):
+    text = BASE.format(speeds="[1.0]").replace('engine = ["reference", "closed-form"]',
+                                               'engine = ["reference", "pybullet-builtin"]')
+    text += "\n[engine_options.pybullet-builtin]\nrestitution = 0.55\n"
+    out = runner.run(write(tmp_path, text), tmp_path / "out", quiet=True)
+    rows = [json.loads(x) for x in (out / "records.jsonl").read_text().splitlines()]
+    by = {r["cell.engine"]: r for r in rows}
+    assert by["pybullet-builtin"]["cor_n"] == pytest.approx(0.55, rel=1e-6)
+    assert by["reference"]["cor_n"] < 0.8  # the MSF law, untouched by the restitution flag
+    bad = text.replace("[engine_options.pybullet-builtin]", "[engine_options.mujoco]")
+    with pytest.raises(ConfigError, match=r"\[engine_options.mujoco\] names an engine that is not in"):
+        runner.run(write(tmp_path, bad, "bad.toml"), tmp_path / "out2", quiet=True)

@@ -13,6 +13,8 @@ Configuration (TOML)::
     angle = [90.0]
     spin = [0.0]
     engine = ["reference", "closed-form"]
+    [engine_options.mujoco-builtin]   # flags for one engine only
+    solref = [0.002, 0.3]
     [curves]
     samples = 300     # force-time samples stored for the reference solver (0: none)
 
@@ -105,7 +107,11 @@ def load(raw: dict, path: str) -> dict:
     impact = raw.get("impact", {})
     if not isinstance(impact, dict):
         raise ConfigError(f"{path}: [impact] must be a table")
-    rest = {k: v for k, v in raw.items() if k != "impact"}
+    per_engine = raw.get("engine_options", {})
+    if not isinstance(per_engine, dict) or not all(isinstance(v, dict) for v in per_engine.values()):
+        raise ConfigError(f"{path}: [engine_options] must hold one table per engine, e.g. "
+                          "[engine_options.mujoco-builtin]")
+    rest = {k: v for k, v in raw.items() if k not in ("impact", "engine_options")}
     schema = {k: v for k, v in SCHEMA.items() if k != "impact"}
     cfg = validate(rest, schema, path)
     actions = _flag_names(_impact_parser())
@@ -115,6 +121,12 @@ def load(raw: dict, path: str) -> dict:
     base = to_argv(impact, actions, path, "impact")
     cfg["impact_argv"] = base
     cfg["impact"] = impact
+    cfg["engine_argv"] = {}
+    for eng, opts in per_engine.items():
+        if eng not in cfg["sweep"]["engine"]:
+            raise ConfigError(f"{path}: [engine_options.{eng}] names an engine that is not in [sweep.engine] "
+                              f"= {cfg['sweep']['engine']}")
+        cfg["engine_argv"][eng] = to_argv(opts, actions, path, f"engine_options.{eng}")
     cells(cfg)  # builds every cell's argv
     _check_cells(cfg, path)
     return cfg
@@ -124,8 +136,9 @@ def cells(cfg: dict) -> list[dict]:
     sw = cfg["sweep"]
     out = []
     for speed, angle, spin, engine in itertools.product(sw["speed"], sw["angle"], sw["spin"], sw["engine"]):
-        argv = cfg["impact_argv"] + ["--speed", repr(float(speed)), "--angle", repr(float(angle)),
-                                     "--spin", repr(float(spin)), "--engine", engine]
+        argv = cfg["impact_argv"] + cfg.get("engine_argv", {}).get(engine, []) + [
+            "--speed", repr(float(speed)), "--angle", repr(float(angle)), "--spin", repr(float(spin)),
+            "--engine", engine]
         out.append({"scenario": "ball-on-plate", "argv": argv, "speed": float(speed), "angle": float(angle),
                     "spin": float(spin), "engine": engine, "samples": cfg["curves"]["samples"]})
     return out
@@ -252,7 +265,9 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     def f(v, s=1.0, fmt=".4f"):
         return "-" if v is None or (isinstance(v, float) and not math.isfinite(v)) else format(v * s, fmt)
 
-    for r in sorted(rows, key=lambda r: (r["cell.angle"], r["cell.spin"], r["cell.speed"], r["cell.engine"])):
+    order = {e: i for i, e in enumerate(sw["engine"])}
+    for r in sorted(rows, key=lambda r: (r["cell.angle"], r["cell.spin"], r["cell.speed"],
+                                         order.get(r["cell.engine"], len(order)))):
         lines.append(f"| {r['cell.engine']} | {r.get('law')} | {r['cell.speed']:g} | {r['cell.angle']:g} | "
                      f"{r['cell.spin']:g} | {f(r.get('cor_n'))} | {f(r.get('cor_t'))} | {f(r.get('tau'), 1e3)} | "
                      f"{f(r.get('x_max'), 1e3)} | {f(r.get('F_max'), 1, '.2f')} | {f(r.get('spin_out'), 1, '.2f')} |\n")
