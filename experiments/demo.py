@@ -62,6 +62,44 @@ def law_rows(speeds=LAW_SPEEDS):
     return rows
 
 
+def law_force_time_figure(path: Path, speed: float = 1.0) -> Path:
+    """Force-time curves of the five laws at one speed (reference solver)."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from msf_contact import closed_forms as cf
+
+    from ._io import save_figure_atomic
+
+    ball_mat, plate_mat = preset("natural-rubber"), preset("steel")
+    pair = ContactPair(ball_mat, plate_mat)
+    curv = Curvature.sphere_on_plane(RADIUS)
+    ball, plate = Body.sphere(ball_mat, RADIUS), Body.half_space(plate_mat)
+    msf = make_law("msf", pair, curv)
+    ref = simulate_impact(msf, ball, plate, speed, n_samples=400)
+    A = float(cf.kuwabara_kono_A_equivalent(pair.moduli().tan_delta, ref.omega_x))
+    fig, ax = plt.subplots(figsize=(8, 4.5))
+    for name, law in (("MSF", None), ("Hertz (elastic)", make_law("hertz", pair, curv)),
+                      ("Kuwabara-Kono", make_law("kuwabara-kono", pair, curv, A=A)),
+                      ("Hunt-Crossley", make_law("hunt-crossley", pair, curv, cor=ref.cor_n)),
+                      ("spring-dashpot (84)", make_law("spring-dashpot", pair, curv))):
+        r = ref if law is None else simulate_impact(law, ball, plate, speed, n_samples=400)
+        c = r.inputs["curves"]
+        ax.plot([t * 1e3 for t in c["t"]], c["F_n"], lw=2.5 if law is None else 1.3,
+                label=f"{name}: COR {r.cor_n:.3f}, tau {r.tau * 1e3:.2f} ms")
+    ax.set_xlabel("time since onset [ms]")
+    ax.set_ylabel("normal force F_n [N]")
+    ax.set_title(f"Natural-rubber ball R = {RADIUS * 1e3:g} mm on steel at {speed:g} m/s (reference solver)")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=8)
+    fig.tight_layout()
+    save_figure_atomic(fig, path, dpi=110)
+    plt.close(fig)
+    return path
+
+
 def _fmt(v, scale=1.0, fmt=".4f"):
     return "-" if v is None else format(v * scale, fmt)
 
@@ -95,6 +133,7 @@ def run_demo(out: Path, quiet: bool = False) -> Path:
     say("comparison laws on the reference solver")
     lrows = law_rows()
     write_json_atomic(out / "laws.json", lrows)
+    law_force_time_figure(out / "laws_force_time.png")
     jet_section = ""
     if (CONFIGS / "jet.toml").is_file():
         try:
@@ -128,6 +167,7 @@ def run_demo(out: Path, quiet: bool = False) -> Path:
         "![Force-time curves of the reference solver](ball_on_plate/figures/force_time.png)\n\n"
         "The paper's closed forms differ from the model they summarise (`docs/errata.md`, `docs/validation.md`).\n\n"
         "## The comparison laws (reference solver)\n\n"
+        "![Force-time curves of the five laws at 1 m/s](laws_force_time.png)\n\n"
         "| law | V [m/s] | COR | tau [ms] | x_max [mm] | F_max [N] |\n|---|---:|---:|---:|---:|---:|\n"
         + "".join(f"| {r['law']} | {r['speed']:g} | {r['cor_n']:.4f} | {r['tau'] * 1e3:.3f} | {r['x_max'] * 1e3:.3f} | "
                   f"{r['F_max']:.2f} |\n" for r in lrows)

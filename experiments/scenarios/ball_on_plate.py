@@ -202,6 +202,19 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     figs = []
     sw = cfg["sweep"]
     colors = {e: f"C{i}" for i, e in enumerate(sw["engine"])}
+    # overlapping series stay visible: the reference as a thick line, the
+    # others as distinct open markers on thin lines
+    markers = dict(zip(sw["engine"], "osD^vxP*"))
+
+    def style(eng):
+        if eng == "reference":
+            return dict(color=colors.get(eng), lw=4, alpha=0.35, marker="o", ms=9)
+        return dict(color=colors.get(eng), lw=1, marker=markers.get(eng, "o"), ms=7, mfc="none", mew=1.5)
+
+    def autoscale(ax):
+        ys = [y for line in ax.get_lines() for y in line.get_ydata() if y > 0]
+        if ys and max(ys) / min(ys) > 30:
+            ax.set_yscale("log")
     lines = [f"# {cfg['']['title']}\n", "Ball-on-plate impacts; SI units in the records, ms/mm below.\n"]
     # speed sweeps at each (angle, spin)
     for angle, spin in itertools.product(sw["angle"], sw["spin"]):
@@ -210,8 +223,10 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
             fig, axes = plt.subplots(2, 2, figsize=(10, 7))
             for ax, (key, label, scale) in zip(axes.flat, (("cor_n", "normal COR [-]", 1), ("tau", "tau [ms]", 1e3),
                                                            ("x_max", "x_max [mm]", 1e3), ("F_max", "F_max [N]", 1))):
-                for eng, (xs, ys) in sorted(_series(rows, "speed", key, fixed).items()):
-                    ax.plot(xs, [y * scale for y in ys], "o-", label=eng, color=colors.get(eng))
+                for eng, (xs, ys) in sorted(_series(rows, "speed", key, fixed).items(),
+                                            key=lambda kv: kv[0] != "reference"):
+                    ax.plot(xs, [y * scale for y in ys], label=eng, **style(eng))
+                autoscale(ax)
                 ax.set_xlabel("impact speed [m/s]")
                 ax.set_ylabel(label)
                 ax.grid(alpha=0.3)
@@ -230,8 +245,9 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
             fig, axes = plt.subplots(1, 2, figsize=(10, 4))
             for ax, (key, label) in zip(axes, (("cor_t", "tangential COR (centre of mass) [-]"),
                                                ("spin_out", "rebound spin [rad/s]"))):
-                for eng, (xs, ys) in sorted(_series(rows, "angle", key, fixed).items()):
-                    ax.plot(xs, ys, "o-", label=eng, color=colors.get(eng))
+                for eng, (xs, ys) in sorted(_series(rows, "angle", key, fixed).items(),
+                                            key=lambda kv: kv[0] != "reference"):
+                    ax.plot(xs, ys, label=eng, **style(eng))
                 ax.set_xlabel("angle to the plate [deg]")
                 ax.set_ylabel(label)
                 ax.grid(alpha=0.3)
