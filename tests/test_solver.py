@@ -244,3 +244,18 @@ def test_large_mu_is_no_cap():
                              angle_deg=50.0)
     assert capped.cor_t == pytest.approx(free.cor_t, rel=LARGE_MU_RTOL)
     assert capped.spin_out == pytest.approx(free.spin_out, rel=LARGE_MU_RTOL)
+
+
+def test_elliptic_contact_37_equals_the_sphere_of_equal_psi():
+    """(37) with constant k_p depends on the radii only through psi (29): an
+    elliptic contact (R_a, R_b) impacts like a sphere with sqrt(R) = psi/(2 k_p)."""
+    Ra, Rb = 0.02, 0.08
+    pair = ContactPair(RUBBER, RIGID)
+    ell = make_law("msf", pair, Curvature(Ra, Rb), kp_mode="msf-small")
+    R_eq = ((math.sqrt(Ra) + math.sqrt(Rb)) / 2) ** 2
+    sph = make_law("msf", pair, Curvature.sphere_on_plane(R_eq), kp_mode="msf-small")
+    b1 = Body(RUBBER, Ra, 0.03)
+    r_e = simulate_impact(ell, b1, Body.half_space(RIGID), 1.5)
+    r_s = simulate_impact(sph, b1, Body.half_space(RIGID), 1.5)
+    for key in ("cor_n", "tau", "x_max", "F_max"):
+        assert getattr(r_e, key) == pytest.approx(getattr(r_s, key), rel=CONVERGED_RTOL), key
