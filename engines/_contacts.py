@@ -291,25 +291,37 @@ class _Batch:
 
 def _find_root(g, lo, hi, g_lo, g_hi):
     """Vectorised Illinois regula falsi on [lo, hi] (k,) with g(lo) > 0 >= g(hi).
-    g(theta (k,)) -> (k,). Returns theta (k,)."""
+    g(theta (k,)) -> (k,). Returns theta (k,).
+
+    A row is done when its bracket is narrower than ROOT_TOL, or when hi is
+    the root to rounding: g(hi) == 0, or the secant step lands on hi (the
+    linear model puts the root within an ulp of hi). Without the last two
+    tests a row whose g(hi) is exactly 0 (the usual end of an overlap-zero
+    contact) stalls the secant and falls back to ~30 bisections for nothing."""
     lo, hi, g_lo, g_hi = lo.copy(), hi.copy(), g_lo.copy(), g_hi.copy()
     side = np.zeros(lo.shape, int)
+    done = (hi - lo <= ROOT_TOL) | (g_hi == 0)
     for _ in range(ROOT_ITER):
-        if np.all(hi - lo <= ROOT_TOL):
+        if np.all(done):
             break
         den = g_lo - g_hi
         th = np.where(den > 0, lo + g_lo * (hi - lo) / np.where(den > 0, den, 1.0), 0.5 * (lo + hi))
+        done |= (den > 0) & (th >= hi)
+        if np.all(done):
+            break
         # fall back to bisection when the secant stalls at an end
         stalled = (th <= lo) | (th >= hi)
         th = np.where(stalled, 0.5 * (lo + hi), th)
         gt = g(th)
         pos = gt > 0
+        live = ~done
         # Illinois: halve the value at the end that stays
-        g_hi = np.where(pos & (side == 1), 0.5 * g_hi, g_hi)
-        g_lo = np.where(~pos & (side == -1), 0.5 * g_lo, g_lo)
-        lo, g_lo = np.where(pos, th, lo), np.where(pos, gt, g_lo)
-        hi, g_hi = np.where(pos, hi, th), np.where(pos, g_hi, gt)
-        side = np.where(pos, 1, -1)
+        g_hi = np.where(live & pos & (side == 1), 0.5 * g_hi, g_hi)
+        g_lo = np.where(live & ~pos & (side == -1), 0.5 * g_lo, g_lo)
+        lo, g_lo = np.where(live & pos, th, lo), np.where(live & pos, gt, g_lo)
+        hi, g_hi = np.where(live & ~pos, th, hi), np.where(live & ~pos, gt, g_hi)
+        side = np.where(live, np.where(pos, 1, -1), side)
+        done |= (hi - lo <= ROOT_TOL) | (g_hi == 0)
     return hi
 
 
