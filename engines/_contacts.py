@@ -74,7 +74,7 @@ import numpy as np
 
 from msf_contact import closed_forms as cf
 from msf_contact.geometry import area
-from msf_contact.laws import ForceLaw
+from msf_contact.laws import ForceLaw, MSFLaw
 from msf_contact.record import ImpactRecord
 
 from .base import STEPS_PER_CONTACT_MIN, ContactForces, ContactKinematics, PairSpec, as_array
@@ -210,6 +210,16 @@ def _dot(a, b):
     return np.einsum("ij,ij->i", a, b)
 
 
+def _msf_inline(law: ForceLaw) -> bool:
+    """True when the law's normal and tangential forces are MSFLaw's own, so
+    :meth:`_Batch.rhs` may evaluate them inline (one k_p and one sqrt(x) for
+    F_n, its elastic part and the shear lengths, instead of six k_p calls)."""
+    t = type(law)
+    return (t.normal_force is MSFLaw.normal_force and t.shear_lengths is MSFLaw.shear_lengths
+            and t.tangential_stiffness is MSFLaw.tangential_stiffness and t.psi is ForceLaw.psi
+            and t.kp is ForceLaw.kp and t.contact_normal_force is ForceLaw.contact_normal_force)
+
+
 @dataclass
 class _Batch:
     """Constants of k contact rows of one law over one engine step."""
@@ -224,6 +234,11 @@ class _Batch:
     paper: np.ndarray  # (k,) bool
     onset: dict = field(default_factory=dict)  # key -> (k,)
 
+    def __post_init__(self):
+        self.T = np.stack([self.t1, self.t2], axis=1)  # tangent basis (k, 2, 3)
+        self.any_paper = bool(np.any(self.paper))
+        self.inline = _msf_inline(self.law)
+
     @property
     def plain_tangential(self) -> bool:
         """The law uses ForceLaw.tangential_force unchanged (so it may be inlined)."""
@@ -233,22 +248,44 @@ class _Batch:
         return _Batch(self.law, self.n[idx], self.t1[idx], self.t2[idx], self.W[idx], self.Wc[idx],
                       self.a[idx], self.paper[idx], {k: v[idx] for k, v in self.onset.items()})
 
+    def _forces(self, x, xd):
+        """F_n after the separation rule, its elastic part F_n(x, 0) (k,) [N],
+        and the tangential stiffness and damping (k, 2) of the law."""
+        law, o = self.law, self.onset
+        if self.inline:
+            # MSFLaw.normal_force, .shear_lengths, .tangential_stiffness with shared k_p and sqrt(x)
+            g = law.geom
+            kpa = law.kp(x, g.R_a)
+            kpb = kpa if g.R_b == g.R_a else law.kp(x, g.R_b)
+            base = (kpa * math.sqrt(g.R_a) + kpb * math.sqrt(g.R_b)) * np.sqrt(x)
+            el = (2.0 / 3.0) * o["E"] * x
+            F = base * (2.0 * o["eta_E"] * xd + el)
+            Fn = np.maximum(F, 0.0) if law.separation == "force-zero" else F
+            Fc = base * el
+            P_bx = g.k_ha * x + 2.0 * kpb * np.sqrt(g.R_b * x)
+            P_ax = g.k_hb * x + 2.0 * kpa * np.sqrt(g.R_a * x)
+            G = o["G"]
+            k = np.stack([G * P_bx, G * P_ax], axis=-1)
+            b = np.stack([o["eta_Gy"] * P_bx, o["eta_Gz"] * P_ax], axis=-1)
+            return Fn, Fc, k, b
+        Fn = law.contact_normal_force(x, xd, o)
+        Fc = law.normal_force(x, np.zeros_like(xd), o)
+        k, b = law.tangential_stiffness(x, o)
+        return Fn, Fc, k, b
+
     def rhs(self, y):
         """dy/dt (k, NY), F_n (k,), |F_t| (k,)."""
         law, n = self.law, self.n
         x = np.maximum(y[:, _X], 0.0)
         v, vc = y[:, _V], y[:, _VC]
         xd = -_dot(v, n)
-        Fn = law.contact_normal_force(x, xd, self.onset)
-        Fc = law.normal_force(x, np.zeros_like(xd), self.onset)
+        Fn, Fc, k, b = self._forces(x, xd)
         vt = v + xd[:, None] * n
-        sd = np.where(self.paper[:, None], vc - _dot(vc, n)[:, None] * n, vt)
-        s = y[:, _S]
-        s2 = np.stack([_dot(s, self.t1), _dot(s, self.t2)], -1)
-        sd2 = np.stack([_dot(sd, self.t1), _dot(sd, self.t2)], -1)
+        sd = np.where(self.paper[:, None], vc - _dot(vc, n)[:, None] * n, vt) if self.any_paper else vt
+        s2 = np.einsum("kij,kj->ki", self.T, y[:, _S])
+        sd2 = np.einsum("kij,kj->ki", self.T, sd)
         if self.plain_tangential:
             # ForceLaw.tangential_force inlined: one stiffness evaluation gives F_t and the power b s'^2
-            k, b = law.tangential_stiffness(x, self.onset)
             Ft2 = -(b * sd2 + k * s2)
             if law.mu is not None:
                 cap = law.mu * np.maximum(Fn, 0.0)
@@ -256,8 +293,7 @@ class _Batch:
                 Ft2 = Ft2 * np.where(mag > cap, cap / np.where(mag > 0, mag, 1.0), 1.0)[:, None]
         else:
             Ft2, _ = law.tangential_force(x, s2, sd2, self.onset, Fn)
-            _, b = law.tangential_stiffness(x, self.onset)
-        Ft = Ft2[:, :1] * self.t1 + Ft2[:, 1:] * self.t2
+        Ft = np.einsum("ki,kij->kj", Ft2, self.T)
         f = Fn[:, None] * n + Ft
         dy = np.empty_like(y)
         dy[:, _X] = xd
@@ -267,7 +303,7 @@ class _Batch:
         dy[:, _P] = f
         dy[:, _WEL] = Fc * xd
         dy[:, _WVI] = (Fn - Fc) * xd
-        dy[:, _Q] = np.sum(b * sd2 * sd2, axis=1)
+        dy[:, _Q] = np.einsum("ki,ki->k", b * sd2, sd2)
         dy[:, _WT] = -_dot(Ft, vt)
         dy[:, _PI] = y[:, _P]
         return dy, Fn, np.hypot(Ft2[:, 0], Ft2[:, 1])
@@ -275,9 +311,10 @@ class _Batch:
     def rk4(self, y, h):
         """One RK4 step of lengths h (k,). Returns (y_new, F_n at y, |F_t| at y)."""
         hh = h[:, None]
+        hh2 = 0.5 * hh
         k1, Fn, Ft = self.rhs(y)
-        k2, _, _ = self.rhs(y + 0.5 * hh * k1)
-        k3, _, _ = self.rhs(y + 0.5 * hh * k2)
+        k2, _, _ = self.rhs(y + hh2 * k1)
+        k3, _, _ = self.rhs(y + hh2 * k2)
         k4, _, _ = self.rhs(y + hh * k3)
         return y + hh / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4), Fn, Ft
 
