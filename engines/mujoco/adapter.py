@@ -59,7 +59,7 @@ import math
 import mujoco
 import numpy as np
 
-from engines._contacts import closing_distance
+from engines._contacts import _skew, closing_distance
 from engines._geometry import Detection, sphere_box_face, sphere_plane, sphere_sphere
 from engines.base import ContactForces, ContactKinematics, EngineAdapter, PairSpec
 
@@ -97,18 +97,15 @@ class _Pair:
     radius1: float
     fixed1: bool
     fixed2: bool
-    # a_ext estimate: last step's v_rel [m/s] (3,), W [1/kg] (3, 3), impulse on body 1 [N s] (3,)
-    last_v_rel: np.ndarray | None = None
-    last_W: np.ndarray | None = None
-    last_impulse: np.ndarray | None = None
 
 
 def geom_type_name(model: mujoco.MjModel, g: int) -> str:
     return _GEOM_NAMES.get(int(model.geom_type[g]), f"type {int(model.geom_type[g])}")
 
 
-def _mujoco_contact_on(model: mujoco.MjModel, g1: int, g2: int) -> str | None:
-    """Why MuJoCo would make its own contact between geoms g1 and g2, or None."""
+def _mujoco_contact_on(model: mujoco.MjModel, g1: int, g2: int, excluded: set | None = None) -> str | None:
+    """Why MuJoCo would make its own contact between geoms g1 and g2, or None.
+    ``excluded``: the model's exclude signatures, if already collected."""
     for k in range(model.npair):
         if {int(model.pair_geom1[k]), int(model.pair_geom2[k])} == {g1, g2}:
             return f"an explicit <contact><pair> (pair {k})"
@@ -124,9 +121,171 @@ def _mujoco_contact_on(model: mujoco.MjModel, g1: int, g2: int) -> str | None:
     if not ((t1 & a2) or (t2 & a1)):
         return None
     signature = (min(b1, b2) << 16) + max(b1, b2)
-    if signature in set(int(s) for s in model.exclude_signature):
+    if excluded is None:
+        excluded = set(int(s) for s in model.exclude_signature)
+    if signature in excluded:
         return None
     return "contype/conaffinity match and no <contact><exclude> between the bodies"
+
+
+def _simple_free_body(model: mujoco.MjModel, b: int) -> bool:
+    """A body whose only joint is a free joint, with no child bodies and no
+    armature: its inverse inertia at a point is the rigid body's, in closed form."""
+    if b <= 0 or int(model.body_jntnum[b]) != 1:
+        return False
+    j = int(model.body_jntadr[b])
+    if int(model.jnt_type[j]) != mujoco.mjtJoint.mjJNT_FREE or int(model.body_dofnum[b]) != 6:
+        return False
+    a = int(model.body_dofadr[b])
+    if np.any(model.dof_armature[a:a + 6] != 0.0):
+        return False
+    return not np.any(model.body_parentid[1:] == b)
+
+
+def _vectorisable(model: mujoco.MjModel, p: _Pair) -> bool:
+    """Pairs read in one batch: a free sphere on a plane or a sphere that is
+    welded to the world or itself a free body (box faces and chain links go
+    through mj_jac pair by pair)."""
+    if p.kind2 not in ("plane", "sphere") or p.fixed1 or not _simple_free_body(model, p.body1):
+        return False
+    return p.fixed2 or _simple_free_body(model, p.body2)
+
+
+def _cross(a, b):
+    """Row-wise a x b (k, 3), written out (np.cross costs more than the arithmetic here)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+@dataclasses.dataclass
+class _FreeGroup:
+    """The pairs whose bodies are free rigid bodies (or fixed), read and
+    pushed all at once: detection with the vectorised :mod:`engines._geometry`
+    functions, point velocities from ``cvel`` (v + w x (p - subtree com),
+    what J qvel gives), W in closed form
+    (:func:`engines._contacts.effective_inverse_inertia_free`: 1/m - [r]x I^-1 [r]x,
+    what J M^-1 J^T gives for a free body without armature), W_com = sum 1/m,
+    and the force as the free joints' generalised force (force; torque about
+    the joint anchor in body axes, what mj_applyFT gives), accumulated with
+    ``np.add.at``. All arrays (k,) or (k, 3) over the group's pairs."""
+
+    index: np.ndarray  # pair indices
+    g1: np.ndarray
+    g2: np.ndarray
+    b1: np.ndarray
+    b2: np.ndarray
+    R1: np.ndarray  # body 1's radius [m]
+    R2: np.ndarray  # body 2's radius [m] (nan: plane)
+    plane: np.ndarray  # bool
+    free2: np.ndarray  # bool: body 2 is a free body (else welded to the world)
+    a0: np.ndarray  # first-step a_ext: gravity on the free bodies [m/s^2] (k, 3)
+    inv_m1: np.ndarray  # [1/kg]
+    inv_m2: np.ndarray  # [1/kg] (0 for a fixed body)
+    dof1: np.ndarray  # first dof of body 1's free joint
+    dof2: np.ndarray
+    jnt1: np.ndarray
+    jnt2: np.ndarray
+
+    @classmethod
+    def of(cls, model: mujoco.MjModel, pairs: list[_Pair]) -> "_FreeGroup":
+        k = len(pairs)
+        i = lambda f: np.array([f(p) for p in pairs], dtype=int).reshape(k)  # noqa: E731
+        b1, b2 = i(lambda p: p.body1), i(lambda p: p.body2)
+        free2 = np.array([not p.fixed2 for p in pairs], dtype=bool).reshape(k)
+        g = np.array(model.opt.gravity, dtype=float)
+        if model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY:
+            g = np.zeros(3)
+        jnt1 = model.body_jntadr[b1].astype(int)
+        jnt2 = np.where(free2, model.body_jntadr[b2], 0).astype(int)
+        return cls(
+            index=i(lambda p: p.index), g1=i(lambda p: p.geom1), g2=i(lambda p: p.geom2), b1=b1, b2=b2,
+            R1=np.array([p.radius1 for p in pairs], dtype=float).reshape(k),
+            R2=np.array([float(model.geom_size[p.geom2, 0]) if p.kind2 == "sphere" else math.nan for p in pairs],
+                        dtype=float).reshape(k),
+            plane=np.array([p.kind2 == "plane" for p in pairs], dtype=bool).reshape(k), free2=free2,
+            a0=g - free2[:, None] * g, inv_m1=1.0 / model.body_mass[b1],
+            inv_m2=np.where(free2, 1.0 / np.where(free2, model.body_mass[b2], 1.0), 0.0),
+            dof1=model.jnt_dofadr[jnt1].astype(int), dof2=np.where(free2, model.jnt_dofadr[jnt2], 0).astype(int),
+            jnt1=jnt1, jnt2=jnt2)
+
+    def kinematics(self, m, d, dt, required, last_v, last_dv, have_last) -> dict:
+        """Candidate rows of the group (a dict of ContactKinematics fields) and
+        the a_ext bookkeeping of every pair of the group."""
+        k = self.index.size
+        c1 = d.geom_xpos[self.g1]
+        x = np.empty(k)
+        nrm, point, p1, p2 = (np.empty((k, 3)) for _ in range(4))
+        for sel, det in self._detect(d, c1):
+            x[sel], nrm[sel], point[sel], p1[sel], p2[sel] = det.x, det.normal, det.point, det.point1, det.point2
+        cvel, com = d.cvel, d.subtree_com
+        w1, w2 = cvel[self.b1, :3], cvel[self.b2, :3]  # a welded body's cvel is 0
+        c1c, c2c = com[m.body_rootid[self.b1]], com[m.body_rootid[self.b2]]
+        v_rel = (cvel[self.b1, 3:] + _cross(w1, p1 - c1c)) - (cvel[self.b2, 3:] + _cross(w2, p2 - c2c))
+        idx = self.index
+        a_ext = np.where(have_last[idx][:, None], (v_rel - last_v[idx] - last_dv[idx]) / dt, self.a0)
+        last_v[idx], last_dv[idx], have_last[idx] = v_rel, 0.0, True
+        xd = -np.einsum("ij,ij->i", v_rel, nrm)
+        xdd = -np.einsum("ij,ij->i", a_ext, nrm)
+        reach = closing_distance(xd, xdd, dt, CANDIDATE_FACTOR)
+        c = np.flatnonzero((x > -reach) | required[idx])
+        b1, b2 = self.b1[c], self.b2[c]
+        xi1, xi2 = d.xipos[b1], d.xipos[b2]
+        W = self._inverse_inertia(m, d, b1, p1[c] - xi1, self.inv_m1[c])
+        f2 = self.free2[c]
+        if np.any(f2):
+            W[f2] += self._inverse_inertia(m, d, b2[f2], p2[c][f2] - xi2[f2], self.inv_m2[c][f2])
+        W_com = (self.inv_m1[c] + self.inv_m2[c])[:, None, None] * np.eye(3)
+        v_com = (cvel[b1, 3:] + _cross(w1[c], xi1 - c1c[c])) - (cvel[b2, 3:] + _cross(w2[c], xi2 - c2c[c]))
+        rows = dict(pair=idx[c], x=x[c], normal=nrm[c], point=point[c], v_rel=v_rel[c], v_com_rel=v_com, W=W,
+                    W_com=W_com, a_ext=a_ext[c])
+        pos = np.full(len(last_v), -1)
+        pos[idx[c]] = np.arange(c.size)
+        return {"rows": rows, "pos": pos, "p1": p1[c], "p2": p2[c]}
+
+    def _detect(self, d, c1):
+        pl, sp = np.flatnonzero(self.plane), np.flatnonzero(~self.plane)
+        if pl.size:
+            g2 = self.g2[pl]
+            yield pl, sphere_plane(c1[pl], self.R1[pl], d.geom_xpos[g2], d.geom_xmat[g2][:, 2::3])
+        if sp.size:
+            yield sp, sphere_sphere(c1[sp], self.R1[sp], d.geom_xpos[self.g2[sp]], self.R2[sp])
+
+    @staticmethod
+    def _inverse_inertia(m, d, b, r, inv_m):
+        """1/m Id - [r]x I^-1 [r]x (k, 3, 3), I^-1 = R diag(1/I) R^T in world axes."""
+        R = d.ximat[b].reshape(-1, 3, 3)
+        Iinv = (R * (1.0 / m.body_inertia[b])[:, None, :]) @ R.transpose(0, 2, 1)
+        rx = _skew(r)
+        return inv_m[:, None, None] * np.eye(3) - rx @ Iinv @ rx
+
+    def forces(self, d, pair, F, blk, dt, last_dv):
+        """What the hook applies for the rows with a force (pair indices
+        ``pair``, forces on body 1 F (k, 3) [N]); records W P for a_ext."""
+        rows = blk["pos"][pair]
+        W = blk["rows"]["W"][rows]
+        last_dv[pair] = np.einsum("kij,kj->ki", W, F * dt)
+        gi = np.searchsorted(self.index, pair)
+        b1, b2 = self.b1[gi], self.b2[gi]
+        r1 = blk["p1"][rows] - d.xipos[b1]
+        r2 = blk["p2"][rows] - d.xipos[b2]
+        f2 = self.free2[gi]
+        return (b1, self.jnt1[gi], self.dof1[gi], F, r1, b2[f2], self.jnt2[gi][f2], self.dof2[gi][f2], -F[f2], r2[f2])
+
+    @staticmethod
+    def apply(d, b1, j1, a1, F1, r1, b2, j2, a2, F2, r2) -> None:
+        """Add the forces to qfrc_passive; the lever arms r from each body's
+        centre of mass are held fixed in world axes over the step."""
+        q = d.qfrc_passive
+        for b, j, a, F, r in ((b1, j1, a1, F1, r1), (b2, j2, a2, F2, r2)):
+            if not b.size:
+                continue
+            arm = d.xipos[b] + r - d.xanchor[j]
+            tq = np.einsum("kji,kj->ki", d.xmat[b].reshape(-1, 3, 3), _cross(arm, F))
+            np.add.at(q, a[:, None] + np.arange(3), F)
+            np.add.at(q, a[:, None] + np.arange(3, 6), tq)
 
 
 class MujocoAdapter(EngineAdapter):
@@ -146,6 +305,7 @@ class MujocoAdapter(EngineAdapter):
         self.model, self.data = model, data
         if not pairs:
             raise ValueError("pairs is empty: give at least one PairSpec")
+        self._excluded = set(int(s) for s in model.exclude_signature)
         self._pairs = [self._resolve(i, p) for i, p in enumerate(pairs)]
         super().__init__(pairs)
         nv = model.nv
@@ -157,6 +317,17 @@ class MujocoAdapter(EngineAdapter):
         # (body1, body2, body2 fixed, force on body 1 [N], lever arms [m] (3,) from each
         # body's centre of mass to its contact point, world axes, at the step start)
         self._apply: list[tuple[int, int, bool, np.ndarray, np.ndarray, np.ndarray]] = []
+        # a_ext estimate per pair: last step's v_rel [m/s] (P, 3) and the change of v_rel
+        # this adapter's impulse caused, W P [m/s] (P, 3)
+        P = len(self._pairs)
+        self._last_v = np.zeros((P, 3))
+        self._last_dv = np.zeros((P, 3))
+        self._have_last = np.zeros(P, bool)
+        self._fast = _FreeGroup.of(model, [p for p in self._pairs if _vectorisable(model, p)])
+        self._is_fast = np.zeros(P, bool)
+        self._is_fast[self._fast.index] = True
+        self._slow = [p for p in self._pairs if not self._is_fast[p.index]]
+        self._apply_fast: tuple | None = None
         self.manager.set_body_probe(self._probe)
         #: number of engine steps run through :meth:`step`
         self.steps = 0
@@ -195,7 +366,7 @@ class MujocoAdapter(EngineAdapter):
             if not same:
                 raise ValueError(f"pair {i}: the law's curvature {label} = {got!r} m does not match the geom "
                                  f"radius {want!r} m of {p.body1 if label[1] == '1' else p.body2!r}")
-        why = _mujoco_contact_on(m, g1, g2)
+        why = _mujoco_contact_on(m, g1, g2, self._excluded)
         if why is not None:
             raise ValueError(f"pair {i} ({p.body1!r}, {p.body2!r}): MuJoCo's own contact is on ({why}); "
                              f"add <contact><exclude body1=\"{m.body(int(m.geom_bodyid[g1])).name}\" "
@@ -245,6 +416,8 @@ class MujocoAdapter(EngineAdapter):
         # the lever arm from each body's centre of mass is held fixed in world axes
         # over the step (the contact point stays under the ball; the manager's W
         # assumes it), so every RK4 stage gets the same force and moment
+        if self._apply_fast is not None:
+            self._fast.apply(data, *self._apply_fast)
         for b1, b2, fixed2, F, r1, r2 in self._apply:
             mujoco.mj_applyFT(model, data, F, _ZERO3, data.xipos[b1] + r1, b1, data.qfrc_passive)
             if not fixed2:
@@ -284,13 +457,24 @@ class MujocoAdapter(EngineAdapter):
 
     def _compute(self) -> None:
         """Read the kinematics of every candidate pair, call the manager once,
-        and keep the forces to apply in every hook call of this step."""
+        and keep the forces to apply in every hook call of this step. Pairs of
+        a free sphere and a plane, a fixed body or another free sphere are
+        read for all of them at once (:class:`_FreeGroup`); the others (links
+        of chains, box faces) through MuJoCo's Jacobians pair by pair."""
         m, d = self.model, self.data
         dt = self.timestep
+        P = len(self._pairs)
+        required = np.zeros(P, bool)
+        required[self.manager.required_pairs] = True  # in contact, or a correction to remove
+        blocks = []
+        W_fast = None
+        if self._fast.index.size:
+            blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last)
+            W_fast = blk
+            blocks.append(blk["rows"])
         rows = []
         points = {}
-        required = set(int(i) for i in self.manager.required_pairs)  # in contact, or a correction to remove
-        for p in self._pairs:
+        for p in self._slow:
             det = self._geometry(p)
             x, n, point = float(det.x[0]), det.normal[0], det.point[0]
             # each body's Jacobian at its own surface point (they differ across a gap)
@@ -298,47 +482,60 @@ class MujocoAdapter(EngineAdapter):
             J = self._jacobian(p.body1, p1, self._jac).copy()
             J -= self._jacobian(p.body2, p2, self._jac2)
             v_rel = J @ d.qvel
-            if p.last_v_rel is not None:
-                a_ext = (v_rel - p.last_v_rel - p.last_W @ p.last_impulse) / dt
+            i = p.index
+            if self._have_last[i]:
+                a_ext = (v_rel - self._last_v[i] - self._last_dv[i]) / dt
             else:
                 a_ext = self._first_step_a_ext(p)
-            p.last_v_rel, p.last_impulse = v_rel, np.zeros(3)
+            self._last_v[i], self._last_dv[i], self._have_last[i] = v_rel, 0.0, True
             reach = float(closing_distance(-float(v_rel @ n), -float(a_ext @ n), dt, CANDIDATE_FACTOR))
-            if x <= -reach and p.index not in required:
-                p.last_W = np.zeros((3, 3))
+            if x <= -reach and not required[i]:
                 continue
             # W = J M^-1 J^T, W_com = J_c M^-1 J^T
             MinvJT = np.zeros((3, m.nv))
             mujoco.mj_solveM(m, d, MinvJT, np.ascontiguousarray(J))
             W = J @ MinvJT.T
-            p.last_W = W
             Jc = self._jacobian(p.body1, d.xipos[p.body1], self._jac).copy()
             Jc -= self._jacobian(p.body2, d.xipos[p.body2], self._jac2)
             v_com = Jc @ d.qvel
             W_com = Jc @ MinvJT.T
-            rows.append((p.index, x, n, point, v_rel, v_com, W, W_com, a_ext))
-            points[p.index] = (p1, p2)
+            rows.append((i, x, n, point, v_rel, v_com, W, W_com, a_ext))
+            points[i] = (p1, p2, W)
+        if rows:
+            cols = list(zip(*rows))
+            blocks.append(dict(pair=np.array(cols[0], dtype=int), x=np.array(cols[1], dtype=float),
+                               normal=np.array(cols[2], dtype=float), point=np.array(cols[3], dtype=float),
+                               v_rel=np.array(cols[4], dtype=float), v_com_rel=np.array(cols[5], dtype=float),
+                               W=np.array(cols[6], dtype=float), W_com=np.array(cols[7], dtype=float),
+                               a_ext=np.array(cols[8], dtype=float)))
         self._apply = []
+        self._apply_fast = None
         # the manager is called every step, also without candidates (it completes records then)
-        cols = list(zip(*rows)) if rows else [()] * 9
-        kin = ContactKinematics(
-            pair=np.array(cols[0], dtype=int), x=np.array(cols[1], dtype=float),
-            normal=np.reshape(np.array(cols[2], dtype=float), (-1, 3)),
-            point=np.reshape(np.array(cols[3], dtype=float), (-1, 3)),
-            v_rel=np.reshape(np.array(cols[4], dtype=float), (-1, 3)),
-            v_com_rel=np.reshape(np.array(cols[5], dtype=float), (-1, 3)),
-            W=np.reshape(np.array(cols[6], dtype=float), (-1, 3, 3)),
-            W_com=np.reshape(np.array(cols[7], dtype=float), (-1, 3, 3)),
-            a_ext=np.reshape(np.array(cols[8], dtype=float), (-1, 3)), t=float(d.time))
+        shapes = dict(pair=(), x=(), normal=(3,), point=(3,), v_rel=(3,), v_com_rel=(3,), W=(3, 3),
+                      W_com=(3, 3), a_ext=(3,))
+        if len(blocks) == 1:
+            cat = blocks[0]
+        else:
+            cat = {k: np.concatenate([b[k] for b in blocks]) if blocks else np.zeros((0,) + s)
+                   for k, s in shapes.items()}
+            cat["pair"] = cat["pair"].astype(int)
+        order = np.argsort(cat["pair"], kind="stable")  # rows in pair order
+        kin = ContactKinematics(t=float(d.time), **{k: np.reshape(v[order], (-1,) + shapes[k])
+                                                    for k, v in cat.items()})
         out: ContactForces = self.manager.step(kin)
-        self.last_forces = out if rows else None
-        for k, i in enumerate(np.asarray(out.pair, dtype=int)):
-            F = np.array(out.force[k], dtype=float)
-            if not np.any(F):
-                continue
+        self.last_forces = out if kin.pair.size else None
+        pair = np.asarray(out.pair, dtype=int)
+        force = np.asarray(out.force, dtype=float)
+        hit = np.any(force != 0.0, axis=1)
+        fast = hit & self._is_fast[pair]
+        if np.any(fast):
+            self._apply_fast = self._fast.forces(d, pair[fast], force[fast], W_fast, dt, self._last_dv)
+        for k in np.flatnonzero(hit & ~self._is_fast[pair]):
+            i = int(pair[k])
+            F = np.array(force[k], dtype=float)
             p = self._pairs[i]
-            p.last_impulse = F * dt
-            p1, p2 = points[int(i)]
+            p1, p2, W = points[i]
+            self._last_dv[i] = W @ (F * dt)
             self._apply.append((p.body1, p.body2, p.fixed2, F, p1 - d.xipos[p.body1], p2 - d.xipos[p.body2]))
 
     def _angular_velocity(self, body: int) -> np.ndarray:
