@@ -48,4 +48,4 @@ def get_scenario(name: str) -> Scenario:
 
 
 def _load_builtin() -> None:
-    from . import ball_on_plate, calibration, chung_ooi  # noqa: F401
+    from . import ball_on_plate, calibration, chung_ooi, jet, paddle  # noqa: F401
