@@ -447,3 +447,81 @@ def calibrate(p: Problem, forms=FORMS) -> tuple[ImpactRecord, dict[str, Fit]]:
 def builtin_params(fit: Fit) -> dict:
     """The engine's ``builtin`` dict for a fit (run_builtin_impact's argument)."""
     return dict(fit.params)
+
+
+# ------------------------------------------------------------ command line ---
+def add_calibrate_arguments(p) -> None:
+    """`msf-contact calibrate`: the pair, the speed and the engine step."""
+    from . import cli
+    from .engine_cli import _number
+
+    cli._add_material_arguments(p, "ball", f"default {cli.DEFAULT_BALL}")
+    cli._add_material_arguments(p, "plate", "omitted: a rigid plate")
+    p.add_argument("--radius", type=_number, default=cli.DEFAULT_RADIUS, metavar="R",
+                   help=f"ball radius [m] (default {cli.DEFAULT_RADIUS})")
+    p.add_argument("--mass", type=_number, default=None, metavar="KG", help="ball mass [kg] (default: from density)")
+    p.add_argument("--speed", type=_number, default=cli.DEFAULT_SPEED, metavar="V",
+                   help=f"calibration (normal impact) speed [m/s] (default {cli.DEFAULT_SPEED})")
+    p.add_argument("--dt", type=_number, default=1e-4, metavar="SECONDS",
+                   help="the engine time step the parameters are for [s] (default 1e-4)")
+    p.add_argument("--phases", type=int, default=DEFAULT_PHASES,
+                   help=f"onset phases averaged per engine figure (default {DEFAULT_PHASES})")
+    p.add_argument("--integrator", choices=("euler", "rk4", "implicitfast"), default="euler",
+                   help="MuJoCo integrator (default euler)")
+    p.add_argument("--form", action="append", choices=FORMS, default=None,
+                   help="what to fit (repeatable; default all: " + ", ".join(FORMS) + ")")
+    p.add_argument("--json", action="store_true", help="print one JSON object (SI units)")
+
+
+def cmd_calibrate(args) -> int:
+    import json
+
+    from . import cli
+
+    check_positive("--radius", args.radius, unit="m")
+    check_positive("--speed", args.speed, unit="m/s")
+    check_positive("--dt", args.dt, unit="s")
+    if args.phases < 1:
+        raise ValueError(f"--phases = {args.phases!r} must be >= 1")
+    if args.mass is not None:
+        check_positive("--mass", args.mass, unit="kg")
+    ball = cli._material(args, "ball", cli.DEFAULT_BALL)
+    plate = cli._material(args, "plate", None)
+    p = problem_of(ball, plate, args.radius, args.speed, args.dt, mass=args.mass, phases=args.phases,
+                   integrator=args.integrator)
+    cli.check_x_max(p.law, p.mass, args.speed)
+    ref, fits = calibrate(p, tuple(args.form or FORMS))
+    if args.json:
+        print(cli.to_json({"reference": {k: getattr(ref, k) for k in ("cor_n", "tau", "x_max", "F_max")},
+                           "ball": ball.name, "plate": plate.name, "radius": args.radius, "mass": p.ball.mass,
+                           "speed": args.speed, "dt": args.dt, "phases": args.phases,
+                           "fits": {k: f.to_dict() for k, f in fits.items()}}))
+        return 0
+    print(f"calibration to MSF: ball {ball.name}, R = {args.radius:g} m, m = {p.ball.mass:.6g} kg, plate "
+          f"{plate.name}; V = {args.speed:g} m/s, dt = {args.dt:g} s; engine figures: means over {args.phases} "
+          "onset phases")
+    print(f"  reference solver: COR = {ref.cor_n:.6g}, tau = {ref.tau:.6g} s")
+    for f in fits.values():
+        st = f.stats
+        if f.form == "mujoco-solref":
+            what = (f"solref = \"{f.params['solref'][0]:.6g} {f.params['solref'][1]:.6g}\" solimp = "
+                    f"\"{' '.join(f'{x:g}' for x in f.params['solimp'])}\"  (direct form solref = "
+                    f"\"{f.equivalent['solref_direct'][0]:.6g} {f.equivalent['solref_direct'][1]:.6g}\")")
+        elif f.form == "pybullet-restitution":
+            what = f"restitution = {f.params['restitution']:.6g} (pair; sqrt on each body, restitution settings)"
+        else:
+            what = (f"contactStiffness = {f.params['contact_stiffness']:.6g} N/m, contactDamping = "
+                    f"{f.params['contact_damping']:.6g} N s/m (pair values)")
+        print(f"  {f.form}: {what}")
+        print(f"    engine: COR = {st.cor_n:.6g} ({100 * f.cor_error:+.2f}%, single impacts {st.cor_n_min:.4g}.."
+              f"{st.cor_n_max:.4g}), tau = {st.tau:.6g} s ({100 * f.tau_error:+.1f}%)"
+              f"{'' if f.cor_ok else '  COR NOT MATCHED'}{'' if f.tau_ok or f.form == 'pybullet-restitution' else '  tau not matched'}")
+        if f.note:
+            print(f"    note: {f.note}")
+    return 0
+
+
+from .cli import register_command  # noqa: E402 - the command line imports this module (commands.py)
+
+register_command("calibrate", "MuJoCo solref / pybullet restitution, stiffness and damping that reproduce MSF's "
+                 "COR and contact duration at one speed and time step", add_calibrate_arguments, cmd_calibrate)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
+from . import calibrate  # noqa: F401 - registers `calibrate`
 from .cli import register_command
 
 

@@ -198,6 +198,13 @@ def _mujoco_state(model, data) -> tuple[float, float, float]:
     return float(data.qvel[bq]), float(data.qvel[bq + 2]), float(data.qvel[model.jnt_dofadr[model.joint("hinge").id]])
 
 
+def _mujoco_ball(model, data) -> dict:
+    """The ball's centre x, z [m] and spin about +y [rad/s] now (for momentum bookkeeping)."""
+    bq = model.jnt_qposadr[model.joint("ball_free").id]
+    bv = model.jnt_dofadr[model.joint("ball_free").id]
+    return {"x": float(data.qpos[bq]), "z": float(data.qpos[bq + 2]), "wy": float(data.qvel[bv + 4])}
+
+
 def strike_mujoco(law, ball, pad: dict, v_ball: float, u: float, drive: str, dt: float, gap: float,
                   integrator: str, builtin: dict | None) -> dict:
     """One strike in MuJoCo; MSF through the adapter (``builtin`` None) or
@@ -251,7 +258,7 @@ def strike_mujoco(law, ball, pad: dict, v_ball: float, u: float, drive: str, dt:
             raise RuntimeError(f"the ball did not reach the paddle within {max_steps} steps of dt = {dt!r} s")
         out.update(tau=n_force * dt, carried=carried)
     vx, vz, rate = _mujoco_state(model, data)
-    return dict(out, vx=vx, vz=vz, u_after=-rate * pad["hit_at"])
+    return dict(out, vx=vx, vz=vz, u_after=-rate * pad["hit_at"], **_mujoco_ball(model, data))
 
 
 # --------------------------------------------------------------- pybullet ---
@@ -324,12 +331,15 @@ def strike_pybullet(law, ball, pad: dict, v_ball: float, u: float, drive: str, d
 
 
 def _pybullet_state(c: int, ub: int, up: int, lp: int, d: float) -> dict:
-    """Ball velocity (vx, vz) [m/s] and the paddle's hit-point speed u_after [m/s] now."""
+    """Ball velocity (vx, vz) [m/s], centre (x, z) [m], spin wy [rad/s] and the
+    paddle's hit-point speed u_after [m/s] now."""
     import pybullet as pb
 
-    v, _ = pb.getBaseVelocity(ub, physicsClientId=c)
+    v, w = pb.getBaseVelocity(ub, physicsClientId=c)
+    pos = pb.getBasePositionAndOrientation(ub, physicsClientId=c)[0]
     rate = pb.getJointState(up, lp, physicsClientId=c)[1]
-    return {"vx": float(v[0]), "vz": float(v[2]), "u_after": -float(rate) * d}
+    return {"vx": float(v[0]), "vz": float(v[2]), "u_after": -float(rate) * d, "x": float(pos[0]),
+            "z": float(pos[2]), "wy": float(w[1])}
 
 
 # ------------------------------------------------------------------- cell ---
