@@ -1,0 +1,165 @@
+"""Benchmark 1: per-step cost of N spheres resting/bouncing on a plate.
+
+Each engine runs the same N free spheres (natural rubber, R = 20 mm, on a
+steel plate; gravity 9.81 m/s^2; dt = 1 ms; seeded initial gaps in
+[0, 0.5 mm]) three ways, built side by side in one process:
+
+- ``msf``: MuJoCo/pybullet's own contact off, the MSF law through the adapter
+  (sub-cycled inside each step);
+- ``builtin``: the engine's own contact (MuJoCo soft contact with default
+  solref/solimp and condim; pybullet's default contact);
+- ``nocontact``: no collision at all (MuJoCo: the spheres collide with
+  nothing; pybullet: collision filter masks 0).
+
+After WARMUP steps each variant runs STEPS steps per repeat, the variants
+interleaved (msf, builtin, nocontact, msf, ...) so machine noise hits them
+alike; the per-step figure is the median over repeats.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ._common import RADIUS, grid, log, median_time, rubber_on_steel
+
+DT = 1e-3
+GRAVITY = 9.81
+WARMUP = 20
+SIZES = (1, 100, 1000, 10000)
+QUICK_SIZES = (1, 100)
+
+
+def _steps(n: int, engine: str) -> int:
+    """Steps per timed repeat: ~0.1-1 s of MSF work per repeat on a 2-core machine."""
+    if n <= 1:
+        return 200
+    if n <= 100:
+        return 40
+    if n <= 1000:
+        return 8
+    return 2
+
+
+# ------------------------------------------------------------------ MuJoCo --
+def mujoco_variant(n: int, mode: str):
+    """(step(k) callable, info callable) for N spheres in MuJoCo."""
+    import mujoco
+
+    from engines.base import PairSpec
+    from engines.mujoco import MujocoAdapter
+
+    law, ball = rubber_on_steel()
+    J = ball.J
+    ball_attr = {"msf": 'contype="0" conaffinity="0"', "builtin": 'contype="1" conaffinity="0"',
+                 "nocontact": 'contype="0" conaffinity="0"'}[mode]
+    bodies = "".join(
+        f'<body name="b{i}" pos="{float(c[0])!r} {float(c[1])!r} {float(c[2])!r}"><freejoint/>'
+        f'<inertial pos="0 0 0" mass="{ball.mass!r}" diaginertia="{J!r} {J!r} {J!r}"/>'
+        f'<geom name="g{i}" type="sphere" size="{RADIUS!r}" {ball_attr}/></body>'
+        for i, c in enumerate(grid(n)))
+    xml = (f'<mujoco><option timestep="{DT!r}" integrator="Euler" gravity="0 0 {-GRAVITY!r}"/>'
+           f'<worldbody><geom name="plate" type="plane" size="0 0 1" contype="0" conaffinity="1"/>{bodies}'
+           "</worldbody></mujoco>")
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    if mode != "msf":
+        def step(k):
+            for _ in range(k):
+                mujoco.mj_step(model, data)
+        return step, lambda: {"contacts": int(data.ncon)}, None
+    adapter = MujocoAdapter(model, data, [PairSpec(f"g{i}", "plate", law) for i in range(n)])
+    ctx = adapter.__enter__()  # the hook stays installed for the whole benchmark (closed by the caller)
+
+    def step(k):
+        ctx.step(k)
+        adapter.pop_records()
+    return step, lambda: {"contacts": adapter.manager.active_count}, adapter
+
+
+# ----------------------------------------------------------------- pybullet --
+def pybullet_variant(n: int, mode: str):
+    import pybullet as pb
+
+    from engines.base import PairSpec
+    from engines.pybullet import PybulletAdapter
+    from engines.pybullet.scenes import add_plate, add_sphere, new_client
+
+    law, ball = rubber_on_steel()
+    c = new_client(DT, GRAVITY)
+    plate = add_plate(c, "plane")
+    uids = [add_sphere(c, ball, pos) for pos in grid(n)]
+    if mode == "nocontact":
+        for u in uids + [plate]:
+            pb.setCollisionFilterGroupMask(u, -1, 0, 0, physicsClientId=c)
+    if mode != "msf":
+        def step(k):
+            for _ in range(k):
+                pb.stepSimulation(physicsClientId=c)
+        return step, lambda: {"contacts": len(pb.getContactPoints(physicsClientId=c))}, c
+    adapter = PybulletAdapter(c, [PairSpec((u, -1), (plate, -1), law) for u in uids])
+
+    def step(k):
+        adapter.step(k)
+        adapter.pop_records()
+    return step, lambda: {"contacts": adapter.manager.active_count}, adapter
+
+
+def _close(engine, handle):
+    if handle is None:
+        return
+    if engine == "mujoco":
+        handle.__exit__(None, None, None)
+    elif isinstance(handle, int):
+        import pybullet as pb
+        if pb.isConnected(handle):
+            pb.disconnect(handle)
+    else:
+        handle.close()
+
+
+def measure(engine: str, n: int, repeats: int) -> dict:
+    build = mujoco_variant if engine == "mujoco" else pybullet_variant
+    steps = _steps(n, engine)
+    variants = {}
+    handles = []
+    try:
+        # MuJoCo cannot compile a model while a Python mjcb_passive is installed: msf last
+        for mode in ("builtin", "nocontact", "msf"):
+            step, info, h = build(n, mode)
+            handles.append(h)
+            step(WARMUP)
+            variants[mode] = (step, info)
+        times = {m: [] for m in variants}
+        for _ in range(repeats):
+            for m, (step, _) in variants.items():  # interleaved: noise hits every variant alike
+                times[m].append(median_time(lambda: step(steps), 1)[0] / steps)
+        infos = {m: info() for m, (_, info) in variants.items()}
+    finally:
+        for h in handles:
+            _close(engine, h)
+    med = {m: float(np.median(t)) for m, t in times.items()}
+    return {
+        "name": "per_step", "engine": engine, "n_bodies": n, "dt": DT,
+        "msf_step_s": med["msf"], "builtin_step_s": med["builtin"], "nocontact_step_s": med["nocontact"],
+        "ratio_msf_over_builtin": med["msf"] / med["builtin"],
+        "ratio_msf_over_nocontact": med["msf"] / med["nocontact"],
+        "median": "per-step median over repeats", "repeats": repeats, "steps_per_repeat": steps,
+        "warmup_steps": WARMUP,
+        "msf_contacts_at_end": infos["msf"]["contacts"], "builtin_contacts_at_end": infos["builtin"]["contacts"],
+        "all_s": {m: t for m, t in times.items()},
+    }
+
+
+def run(quick: bool = False) -> list[dict]:
+    out = []
+    sizes = QUICK_SIZES if quick else SIZES
+    for engine in ("mujoco", "pybullet"):
+        for n in sizes:
+            repeats = 3 if quick or n >= 10000 else 5
+            log(f"per_step: {engine}, N = {n}, {repeats} repeats of {_steps(n, engine)} steps")
+            r = measure(engine, n, repeats)
+            log(f"  msf {r['msf_step_s'] * 1e3:.3f} ms, builtin {r['builtin_step_s'] * 1e3:.3f} ms, "
+                f"no contact {r['nocontact_step_s'] * 1e3:.3f} ms per step")
+            out.append(r)
+    return out
