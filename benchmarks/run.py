@@ -65,6 +65,9 @@ def markdown(records: list[dict], mach: dict, command: str) -> str:
                   "| engine | N | MSF [ms] | built-in [ms] | no contact [ms] | MSF/built-in | MSF/no contact | "
                   "MSF contacts |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
         for r in ps:
+            if r.get("failed"):
+                lines.append(f"| {r['engine']} | {r['n_bodies']} | failed: {r['reason']} | | | | | |")
+                continue
             lines.append(f"| {r['engine']} | {r['n_bodies']} | {_ms(r['msf_step_s'])} | {_ms(r['builtin_step_s'])} | "
                          f"{_ms(r['nocontact_step_s'])} | {_x(r['ratio_msf_over_builtin'])} | "
                          f"{_x(r['ratio_msf_over_nocontact'])} | {r['msf_contacts_at_end']} |")
@@ -113,7 +116,7 @@ def markdown(records: list[dict], mach: dict, command: str) -> str:
 def targets_md(records: list[dict]) -> list[str]:
     def find(name, **kw):
         for r in records:
-            if r["name"] == name and all(r.get(k) == v for k, v in kw.items()):
+            if r["name"] == name and not r.get("failed") and all(r.get(k) == v for k, v in kw.items()):
                 return r
         return None
 

@@ -57,7 +57,9 @@ def mujoco_variant(n: int, mode: str):
         f'<inertial pos="0 0 0" mass="{ball.mass!r}" diaginertia="{J!r} {J!r} {J!r}"/>'
         f'<geom name="g{i}" type="sphere" size="{RADIUS!r}" {ball_attr}/></body>'
         for i, c in enumerate(grid(n)))
-    xml = (f'<mujoco><option timestep="{DT!r}" integrator="Euler" gravity="0 0 {-GRAVITY!r}"/>'
+    # MuJoCo's default arena is too small for 10,000 bodies and their contacts
+    size = f'<size memory="{max(16, n // 10)}M"/>'
+    xml = (f'<mujoco>{size}<option timestep="{DT!r}" integrator="Euler" gravity="0 0 {-GRAVITY!r}"/>'
            f'<worldbody><geom name="plate" type="plane" size="0 0 1" contype="0" conaffinity="1"/>{bodies}'
            "</worldbody></mujoco>")
     model = mujoco.MjModel.from_xml_string(xml)
@@ -158,7 +160,13 @@ def run(quick: bool = False) -> list[dict]:
         for n in sizes:
             repeats = 3 if quick or n >= 10000 else 5
             log(f"per_step: {engine}, N = {n}, {repeats} repeats of {_steps(n, engine)} steps")
-            r = measure(engine, n, repeats)
+            try:
+                r = measure(engine, n, repeats)
+            except Exception as exc:  # noqa: BLE001 - one size failing must not lose the others
+                log(f"  failed: {type(exc).__name__}: {exc}")
+                out.append({"name": "per_step", "engine": engine, "n_bodies": n, "dt": DT, "failed": True,
+                            "reason": f"{type(exc).__name__}: {exc}"[:300]})
+                continue
             log(f"  msf {r['msf_step_s'] * 1e3:.3f} ms, builtin {r['builtin_step_s'] * 1e3:.3f} ms, "
                 f"no contact {r['nocontact_step_s'] * 1e3:.3f} ms per step")
             out.append(r)
