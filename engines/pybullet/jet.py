@@ -1,0 +1,101 @@
+"""Abrasive jet in pybullet: the pool driver of
+:class:`experiments.scenarios.jet.JetPool` (same API as
+:mod:`engines.mujoco.jet`).
+
+The scene, in its own DIRECT client: ``n`` free spheres with the particles'
+masses and solid-sphere inertias (no damping, no sleeping, the velocity
+clamp lifted, as in :mod:`engines.pybullet.scenes`) and the fixed plate (a
+plane, or a box whose top face is z = 0). pybullet's own collisions are off
+for every particle (collision filter group and mask 0), so every force
+between the bodies comes from :class:`engines.pybullet.PybulletAdapter`:
+pair i is (particle i, plate), and with particle-particle contacts the
+pool's ``pp_pairs`` follow. Particles are moved with
+``resetBasePositionAndOrientation``/``resetBaseVelocity`` between steps.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from engines.base import PairSpec
+from experiments.scenarios.jet import JetPool, JetSpec
+
+from . import scenes
+from .adapter import PybulletAdapter
+
+import pybullet as pb  # noqa: E402  (after the package, which imports it quietly)
+
+
+def check_spec(spec: JetSpec) -> None:
+    """Nothing pybullet-specific to refuse (pybullet computes in double
+    precision and takes the particles' small inertias as given)."""
+
+
+class PybulletJet(JetPool):
+    """The jet in pybullet (see :class:`experiments.scenarios.jet.JetPool`)."""
+
+    engine = "pybullet"
+
+    def __init__(self, spec: JetSpec, seed=0, *, validate: bool = True):
+        check_spec(spec)
+        self.client = None
+        super().__init__(spec, seed, validate=validate)
+
+    def _build(self) -> None:
+        spec = self.spec
+        c = scenes.new_client(spec.dt, spec.gravity if spec.gravity > 0 else None)
+        self.client = c
+        pl = spec.plate
+        if pl.kind == "plane":
+            shape = pb.createCollisionShape(pb.GEOM_PLANE, planeNormal=[0, 0, 1], physicsClientId=c)
+            plate = pb.createMultiBody(0.0, shape, basePosition=[0, 0, 0], physicsClientId=c)
+        else:
+            h = [0.5 * pl.size[0], 0.5 * pl.size[1], 0.5 * pl.thickness]
+            shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=h, physicsClientId=c)
+            plate = pb.createMultiBody(0.0, shape, basePosition=[0, 0, -0.5 * pl.thickness], physicsClientId=c)
+        v = spec.park_velocity().tolist()
+        shapes = {}
+        self.uid = np.zeros(self.n, int)
+        for i in range(self.n):
+            R, m = float(self.radius[i]), float(self.mass[i])
+            if R not in shapes:
+                shapes[R] = pb.createCollisionShape(pb.GEOM_SPHERE, radius=R, physicsClientId=c)
+            u = pb.createMultiBody(m, shapes[R], basePosition=self.park[i].tolist(), physicsClientId=c)
+            J = 0.4 * m * R * R
+            pb.changeDynamics(u, -1, mass=m, localInertiaDiagonal=[J, J, J], physicsClientId=c)
+            scenes._free_dynamics(c, u)  # noqa: SLF001 - the scenes' own settings for a free body
+            pb.setCollisionFilterGroupMask(u, -1, 0, 0, physicsClientId=c)
+            pb.resetBaseVelocity(u, v, [0.0, 0.0, 0.0], physicsClientId=c)
+            self.uid[i] = u
+        pairs = [PairSpec((int(self.uid[i]), -1), (plate, -1), self.laws[int(self.cls[i])], spec.tangential)
+                 for i in range(self.n)]
+        if self.pp_pairs:
+            pp = spec.pp_laws()
+            pairs += [PairSpec((int(self.uid[i]), -1), (int(self.uid[j]), -1),
+                               pp[(int(self.cls[i]), int(self.cls[j]))], spec.tangential) for i, j in self.pp_pairs]
+        self.adapter = PybulletAdapter(c, pairs)
+
+    def _place(self, idx, pos, vel) -> None:
+        c = self.client
+        for i, p, v in zip(np.asarray(idx, int), np.asarray(pos, float), np.asarray(vel, float)):
+            u = int(self.uid[i])
+            pb.resetBasePositionAndOrientation(u, p.tolist(), [0.0, 0.0, 0.0, 1.0], physicsClientId=c)
+            pb.resetBaseVelocity(u, v.tolist(), [0.0, 0.0, 0.0], physicsClientId=c)
+
+    def _centres(self, idx) -> np.ndarray:
+        c = self.client
+        return np.array([pb.getBasePositionAndOrientation(int(self.uid[i]), physicsClientId=c)[0]
+                         for i in np.asarray(idx, int)], float).reshape(-1, 3)
+
+    def _step(self) -> None:
+        self.adapter.step(1)
+
+    @property
+    def time(self) -> float:
+        return self.adapter.time
+
+    def close(self) -> None:
+        if getattr(self, "adapter", None) is not None:
+            self.adapter.close()
+        elif self.client is not None and pb.isConnected(self.client):
+            pb.disconnect(self.client)
