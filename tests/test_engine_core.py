@@ -15,6 +15,7 @@ from functools import lru_cache
 
 import numpy as np
 import pytest
+from scipy.integrate import quad
 from scipy.optimize import brentq
 
 from engines._contacts import ContactManager, closing_distance, effective_inverse_inertia_free
@@ -477,3 +478,133 @@ def test_supported_pairs():
     assert check_pair_supported("Sphere", "plane") == "sphere-plane"
     assert check_pair_supported("box", "sphere") == "sphere-box"
     assert check_pair_supported("sphere", "sphere") == "sphere-sphere"
+
+
+# -- the settled path ---------------------------------------------------------------
+STEEL = preset("steel")
+#: A resting contact on the settled path holds the static overlap to the
+#: Newton tolerance (SETTLED_VTOL: the internal x within ~1e-12, the engine's
+#: within ~3e-7 relative) once the engine's offset from the first, sub-cycled
+#: step (13 % here) has relaxed at settle_rate = 10 %/step (150 steps:
+#: 0.9^150 x 13 % ~ 2e-8); 1e-6 is far inside REST_RTOL.
+SETTLED_REST_RTOL = 1e-6
+#: The energy of a kicked resting ball may not rise between steps by more than
+#: this share of the kick's energy (round-off of m g z ~ 1e-18 J against ~2e-12 J).
+ENERGY_ROUNDOFF = 1e-3
+
+
+def _static_overlap(law, m, onset):
+    o = {k: np.atleast_1d(np.asarray(v, float))[:1] for k, v in onset.items()}
+    return brentq(lambda x: float(law.normal_force(np.array([x]), np.zeros(1), o)[0]) - m * G, 1e-15, 1e-2,
+                  xtol=1e-22, rtol=1e-15)
+
+
+def test_resting_steel_on_steel_at_2ms_is_stable_at_the_static_overlap():
+    """Steel on steel at dt = 2 ms: the contact's own frequency omega = sqrt(K/m)
+    is ~30/dt, so an explicit force would blow up (explicit schemes need omega dt
+    < 2) and sub-cycling costs ~1,600 RK4 substeps per step. On the settled
+    path the ball rests at m g = F_n(x_s, 0), and a kick (below the settled
+    criterion) dies out without any energy gain."""
+    R, dt = 0.01, 2e-3
+    law = make_law("msf", ContactPair(STEEL, STEEL), Curvature.sphere_on_plane(R))
+    m = 4.0 / 3.0 * math.pi * R**3 * STEEL.density
+    x_s = _static_overlap(law, m, law.onset([1.0], [m]))
+    omega = math.sqrt(1.5 * m * G / x_s / m)  # dF/dx = 3/2 F/x at the static overlap
+    assert omega * dt > 20
+    eng = balls_on_plate(law, R, 0.0, dt, [-0.99 * x_s], gravity=G)  # at rest, 1 % above the static overlap
+
+    def energy():
+        """Kinetic + gravity + elastic energy of the contact int_0^x F_n(x', 0) dx' [J]."""
+        o = {k: np.array([v]) for k, v in eng.mgr.state(0)["onset"].items()}
+        x = R - eng.p[0, 2]
+        u = quad(lambda q: float(law.normal_force(np.array([q]), np.zeros(1), o)[0]), 0.0, x, epsabs=0, epsrel=1e-13)[0]
+        return 0.5 * m * eng.v[0] @ eng.v[0] + 0.5 * eng.I[0] * eng.w[0] @ eng.w[0] + m * G * eng.p[0, 2] + u
+
+    for _ in range(150):
+        eng.step()
+    assert eng.mgr.settled[0] and eng.mgr.active[0]
+    x_s = _static_overlap(law, m, eng.mgr.state(0)["onset"])
+    assert rel(eng.mgr.state(0)["x"], x_s) < SETTLED_REST_RTOL
+    assert rel(R - eng.p[0, 2], x_s) < SETTLED_REST_RTOL
+    # a kick into the plate and along it, below the settled criterion: stays settled, no energy gain
+    kick = np.array([1e-6, 0.0, -1e-5])
+    eng.v[0] += kick
+    e_kick = 0.5 * m * kick @ kick
+    e = [energy()]
+    for _ in range(200):
+        eng.step()
+        assert eng.mgr.settled[0]
+        e.append(energy())
+    assert np.all(np.isfinite(e)) and np.all(np.isfinite(eng.p)) and np.all(np.isfinite(eng.v))
+    # backward Euler of gravity and the contact together: the energy only falls (to round-off of m g z)
+    assert np.all(np.diff(e) <= ENERGY_ROUNDOFF * e_kick)
+    assert rel(R - eng.p[0, 2], x_s) < SETTLED_REST_RTOL
+    # normal motion gone; the sideways kick ends as rolling without slip at 5/7 of it (solid sphere)
+    assert abs(eng.v[0, 2]) < 1e-3 * abs(kick[2])
+    assert rel(eng.v[0, 0], 5.0 / 7.0 * kick[0]) < 1e-3
+    assert abs(eng.v[0, 0] - eng.w[0, 1] * R) < 1e-3 * kick[0]
+
+
+def test_settled_rest_equals_sub_cycled_rest():
+    """The same drop with the settled path on and off (every contact
+    sub-cycled): the same bounces, the same rest at the static overlap."""
+    lossy = Material("lossy-rubber", 5e6, 0.3, 0.49, 930.0)
+    R, dt = R_RUBBER, 2e-3
+    law = make_law("msf", ContactPair(lossy, RIGID), Curvature.sphere_on_plane(R), omega=3000.0)
+    m = 4.0 / 3.0 * math.pi * R**3 * lossy.density
+    out = {}
+    for settled in (True, False):
+        eng = balls_on_plate(law, R, 0.0, dt, [0.02], gravity=G)
+        eng.mgr.settled_path = settled
+        n_settled = 0
+        for _ in range(int(0.8 / dt)):
+            eng.step()
+            n_settled += int(eng.mgr.settled[0])
+        st = eng.mgr.state(0)
+        out[settled] = (st["x"], R - eng.p[0, 2], [r.cor_n for r in eng.mgr.pop_records()],
+                        _static_overlap(law, m, st["onset"]), n_settled)
+    assert out[True][4] > 50 and out[False][4] == 0  # the settled path was taken, and only when allowed
+    for settled in (True, False):
+        x_int, x_eng, _, x_s, _ = out[settled]
+        assert rel(x_int, x_s) < REST_RTOL and rel(x_eng, x_s) < REST_RTOL
+    assert rel(out[True][0], out[False][0]) < 1e-5
+    assert rel(out[True][1], out[False][1]) < 1e-5
+    assert len(out[True][2]) == len(out[False][2]) >= 5
+    assert np.allclose(out[True][2], out[False][2], rtol=1e-9, atol=0)
+
+
+def test_struck_settled_ball_returns_to_sub_cycling():
+    """A steel ball rests on a soft pad (settled); a small steel ball falls on
+    it. The pad contact leaves the settled path at the strike, and the
+    steel-steel impact's COR matches the reference solver's for two free
+    spheres: the pad's own period (~35 ms) is ~1000 times the strike's, so the
+    resting ball is free for the strike."""
+    pad = Material("pad", 1e6, 0.3, 0.45, 1000.0)
+    RA, RB, dt = 0.02, 0.005, 1e-3
+    law_pad = make_law("msf", ContactPair(STEEL, pad), Curvature.sphere_on_plane(RA), omega=300.0)
+    law_hit = make_law("msf", ContactPair(STEEL, STEEL), Curvature.two_spheres(RB, RA))
+    mA, mB = (4.0 / 3.0 * math.pi * r**3 * STEEL.density for r in (RA, RB))
+    x_s = _static_overlap(law_pad, mA, law_pad.onset([math.sqrt(2 * G * 1e-4)], [mA]))
+    t_hit, v0 = 0.15, 0.5  # B reaches A after t_hit, falling from v0
+    gap = v0 * t_hit + 0.5 * G * t_hit**2
+    pos = [[0.0, 0.0, RA - x_s], [0.0, 0.0, 2 * RA - x_s + RB + gap]]
+    eng = FakeEngine([PairSpec("A", "pad", law_pad), PairSpec("B", "A", law_hit)], [(0, -1), (1, 0)], [RA, RB],
+                     [mA, mB], pos, [[0.0, 0.0, 0.0], [0.0, 0.0, -v0]], np.zeros((2, 3)), dt, gravity=G)
+    settled_before = False
+    while not (eng.mgr.active[1] or eng.mgr.pending_count or eng.mgr.records):  # the strike lasts ~50 us
+        settled_before = bool(eng.mgr.settled[0])
+        eng.step()
+        assert eng.t < 2 * t_hit
+    assert settled_before  # the pad contact was on the settled path when B arrived
+    eng.step()
+    assert eng.mgr.active[0] and not eng.mgr.settled[0]  # the hit pushed the pad contact back to sub-cycling
+    while eng.mgr.active[1] or not eng.mgr.records:
+        eng.step()
+    rec = next(r for r in eng.mgr.pop_records() if r.inputs["pair"] == 1)
+    v_in = rec.inputs["v_n_in"]
+    assert rel(v_in, v0 + G * t_hit) < 0.05
+    ref = simulate_impact(law_hit, Body.sphere(STEEL, RB), Body.sphere(STEEL, RA), v_in)
+    assert rel(rec.cor_n, ref.cor_n) < COR_RTOL_ROBOTICS
+    for _ in range(50):  # the pad contact takes the strike, without NaN
+        eng.step()
+    assert np.all(np.isfinite(eng.p)) and np.all(np.isfinite(eng.v))
