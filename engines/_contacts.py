@@ -580,16 +580,16 @@ class ContactManager:
                 raise ValueError(f"kinematics.{name} is not finite: {arr!r}")
         if k and (pair.min() < 0 or pair.max() >= len(self.pairs)):
             raise ValueError(f"kinematics.pair = {pair!r} has indices outside [0, {len(self.pairs) - 1}]")
-        if len(np.unique(pair)) != k:
+        listed = np.zeros(len(self.pairs), bool)
+        listed[pair] = True
+        if np.count_nonzero(listed) != k:
             raise ValueError(f"kinematics.pair = {pair!r} lists a pair twice (one contact per pair)")
         nn = np.linalg.norm(n, axis=1)
         if np.any(np.abs(nn - 1.0) > 1e-6):
             raise ValueError(f"kinematics.normal must be unit vectors, norms {nn!r}")
         n = n / nn[:, None] if k else n
         t0 = float(kin.t)
-        listed = np.zeros(len(self.pairs), bool)
-        listed[pair] = True
-        missing = np.setdiff1d(self.required_pairs, pair)
+        missing = np.flatnonzero((self.active | np.any(self.J != 0.0, axis=1)) & ~listed)  # required_pairs
         if missing.size:
             raise ValueError(f"kinematics.pair = {pair!r} lacks pairs {missing!r} that are in contact or have a "
                              "timing correction to remove: list manager.required_pairs every step")

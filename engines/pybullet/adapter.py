@@ -3,13 +3,18 @@
 
 What it does each engine step (``step``):
 
-1. For every pair, read the poses (``getBasePositionAndOrientation``, or
-   ``getLinkState`` for a link) and velocities (``getBaseVelocity``, or
-   ``getLinkState(computeLinkVelocity=1)``), find the contact of the two
-   smooth shapes (sphere-plane, sphere-box face, sphere-sphere) and the
-   inverse effective inertia at the contact point: free bodies from their
-   world inertia, links of multibodies from pybullet's own
+1. Read every body of the pairs once (``getBasePositionAndOrientation`` and
+   ``getBaseVelocity``, or ``getLinkState(computeLinkVelocity=1)`` for a
+   link; pybullet has no call that reads several bodies), find the contact
+   of the two smooth shapes (sphere-plane, sphere-box face, sphere-sphere)
+   and the inverse effective inertia at the contact point: free bodies from
+   their world inertia, links of multibodies from pybullet's own
    ``calculateJacobian`` and ``calculateMassMatrix`` (W = J M^-1 J^T).
+   Pairs of a free sphere and a plane, a fixed sphere or another free
+   sphere are done for all of them at once in numpy (detection, velocities,
+   W in closed form); box faces and links go pair by pair. Masses and
+   inertias are read once, at construction (``changeDynamics`` afterwards is
+   not seen).
 2. Hand the pairs that touch or may touch within the step to the contact
    manager, which integrates the law over the step and returns the
    step-averaged force.
@@ -38,7 +43,7 @@ import numpy as np
 import pybullet as pb
 
 from engines import _geometry
-from engines._contacts import closing_distance, effective_inverse_inertia_free
+from engines._contacts import _skew, closing_distance, effective_inverse_inertia_free
 from engines.base import ContactKinematics, EngineAdapter, PairSpec
 
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times
@@ -79,6 +84,39 @@ def _mat(quat) -> np.ndarray:
     return np.array(pb.getMatrixFromQuaternion(quat)).reshape(3, 3)
 
 
+def _mats(q) -> np.ndarray:
+    """Rotation matrices (n, 3, 3) of unit quaternions (x, y, z, w) (n, 4), as getMatrixFromQuaternion."""
+    x, y, z, w = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
+        np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
+        np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
+
+
+def _cross(a, b):
+    """Row-wise a x b (n, 3), written out (np.cross costs more than the arithmetic here)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
+@dataclass
+class _Bodies:
+    """The world state of every body of the pairs at the start of a step, read
+    once per body; arrays over the adapter's body list."""
+
+    com: np.ndarray  # (B, 3) [m]
+    rot: np.ndarray  # (B, 3, 3) inertial frame to world
+    v: np.ndarray  # (B, 3) [m/s]
+    w: np.ndarray  # (B, 3) [rad/s]
+    frame: np.ndarray  # (B, 3) [m] link frame origin (the centre of mass for a base)
+
+    def pose(self, j: int) -> "_Pose":
+        return _Pose(self.com[j], self.rot[j], self.v[j], self.w[j], self.frame[j])
+
+
 class PybulletAdapter(EngineAdapter):
     """Force laws between pairs of pybullet bodies.
 
@@ -95,6 +133,7 @@ class PybulletAdapter(EngineAdapter):
         if not isinstance(client, int) or not pb.isConnected(client):
             raise ValueError(f"client = {client!r} is not a connected pybullet physics client")
         self.client = client
+        self._fixed_cache: dict[int, bool] = {}  # body unique id -> base has mass 0 (read once)
         self._dt = float(pb.getPhysicsEngineParameters(physicsClientId=client)["fixedTimeStep"])
         if not self._dt > 0:
             raise ValueError(f"the client's time step = {self._dt!r} s must be > 0 (setTimeStep)")
@@ -120,6 +159,7 @@ class PybulletAdapter(EngineAdapter):
         super().__init__(pairs)
         for (u1, l1), (u2, l2) in self._bodies:
             pb.setCollisionFilterPair(u1, u2, l1, l2, enableCollision=0, physicsClientId=client)
+        self._setup_batches()
         n = len(self.pairs)
         self._last_v_rel = np.zeros((n, 3))
         self._last_dv_own = np.zeros((n, 3))
@@ -155,8 +195,69 @@ class PybulletAdapter(EngineAdapter):
     def _fixed(self, b):
         uid, link = b
         if link == -1:
-            return self._base_fixed(uid)
+            if uid not in self._fixed_cache:
+                self._fixed_cache[uid] = self._base_fixed(uid)
+            return self._fixed_cache[uid]
         return False
+
+    def _setup_batches(self):
+        """The body list (each body read once per step), its cached dynamics,
+        and the pairs done all at once: a free sphere (a base without joints)
+        on a plane, a fixed sphere or another free sphere."""
+        c = self.client
+        body_list = sorted({b for pair in self._bodies for b in pair})
+        self._body_list = body_list
+        slot = {b: j for j, b in enumerate(body_list)}
+        self._slot = np.array([[slot[b1], slot[b2]] for b1, b2 in self._bodies], int).reshape(-1, 2)
+        B = len(body_list)
+        self._b_link = np.array([b[1] >= 0 for b in body_list], bool)
+        self._b_fixed = np.array([self._fixed(b) for b in body_list], bool)
+        self._b_inv_m = np.zeros(B)
+        self._b_inv_I = np.zeros((B, 3))  # principal inverse inertia [1/(kg m^2)]
+        for j, b in enumerate(body_list):
+            if not self._b_fixed[j] and not self._b_link[j]:
+                info = pb.getDynamicsInfo(b[0], b[1], physicsClientId=c)
+                self._b_inv_m[j] = 1.0 / info[0]
+                I = np.asarray(info[2], float)
+                self._b_inv_I[j] = np.where(I > 0, 1.0 / np.where(I > 0, I, 1.0), 0.0)
+        self._b_free = ~self._b_fixed & ~self._b_link
+        fast = []
+        for i, ((s1, s2), (b1, b2)) in enumerate(zip(self._shapes, self._bodies)):
+            j1, j2 = slot[b1], slot[b2]
+            if (s1.kind == "sphere" and s2.kind in ("plane", "sphere") and self._b_free[j1]
+                    and (self._b_free[j2] or self._b_fixed[j2])
+                    and pb.getNumJoints(b1[0], physicsClientId=c) == 0):
+                fast.append(i)
+        self._fast = np.array(fast, int)
+        self._is_fast = np.zeros(len(self._bodies), bool)
+        self._is_fast[self._fast] = True
+        self._slow = [i for i in range(len(self._bodies)) if not self._is_fast[i]]
+        f = self._fast
+        self._f_s1 = np.array([self._shapes[i][0].pos for i in f], float).reshape(-1, 3)
+        self._f_r1 = np.array([self._shapes[i][0].size[0] for i in f], float)
+        self._f_plane = np.array([self._shapes[i][1].kind == "plane" for i in f], bool)
+        self._f_s2 = np.array([self._shapes[i][1].pos for i in f], float).reshape(-1, 3)
+        # plane: the normal in body 2's inertial axes; sphere: radius in column 0
+        self._f_size2 = np.array([self._shapes[i][1].rot @ self._shapes[i][1].size if self._shapes[i][1].kind == "plane"
+                                  else np.array([self._shapes[i][1].size[0], 0.0, 0.0]) for i in f],
+                                 float).reshape(-1, 3)
+        self._f_rot1 = np.array([self._shapes[i][0].rot for i in f], float).reshape(-1, 3, 3)
+
+    def _read_bodies(self) -> _Bodies:
+        """Every body of the pairs, one read each (module docstring, step 1)."""
+        c = self.client
+        B = len(self._body_list)
+        com, q, v, w, frame = (np.empty((B, k)) for k in (3, 4, 3, 3, 3))
+        for j, (uid, link) in enumerate(self._body_list):
+            if link == -1:
+                pos, orn = pb.getBasePositionAndOrientation(uid, physicsClientId=c)
+                com[j], q[j], frame[j] = pos, orn, pos
+                v[j], w[j] = pb.getBaseVelocity(uid, physicsClientId=c)
+            else:
+                st = pb.getLinkState(uid, link, computeLinkVelocity=1, computeForwardKinematics=1,
+                                     physicsClientId=c)
+                com[j], q[j], frame[j], v[j], w[j] = st[0], st[1], st[4], st[6], st[7]
+        return _Bodies(com, _mats(q), v, w, frame)
 
     def _articulated(self, b):
         return b[1] >= 0
@@ -301,15 +402,18 @@ class PybulletAdapter(EngineAdapter):
             det = det.swapped()
         return float(det.x[0]), det.normal[0], det.point[0]
 
-    def _kinematics(self):
-        n = len(self.pairs)
-        rows = []
+    def _gravity(self) -> np.ndarray:
         par = pb.getPhysicsEngineParameters(physicsClientId=self.client)
-        grav = np.array([par[k] for k in ("gravityAccelerationX", "gravityAccelerationY", "gravityAccelerationZ")])
-        for i in range(n):
+        return np.array([par[k] for k in ("gravityAccelerationX", "gravityAccelerationY", "gravityAccelerationZ")])
+
+    def _kinematics(self, bodies: _Bodies, grav, required):
+        """Rows of the pairs done one by one (box faces, links)."""
+        rows = []
+        for i in self._slow:
             b1, b2 = self._bodies[i]
-            poses = (self._pose(b1), self._pose(b2))
-            x, nrm, point = self._detect(i, poses, self._edge_margin(i, poses, grav))
+            j1, j2 = self._slot[i]
+            poses = (bodies.pose(j1), bodies.pose(j2))
+            x, nrm, point = self._detect(i, poses, self._edge_margin(i, poses, grav, required))
             v1 = poses[0].v + np.cross(poses[0].w, point - poses[0].com)
             v2 = poses[1].v + np.cross(poses[1].w, point - poses[1].com)
             v_rel = v1 - v2
@@ -322,10 +426,10 @@ class PybulletAdapter(EngineAdapter):
             rows.append((i, x, nrm, point, v_rel, v_com_rel, a_ext, poses))
         return rows
 
-    def _edge_margin(self, i, poses, grav) -> float:
+    def _edge_margin(self, i, poses, grav, required) -> float:
         """Gap below which a sphere over a box edge is refused: a bound on the
         distance the surfaces can close within one step (inf while in contact)."""
-        if i in self._required():
+        if required[i]:
             return math.inf
         ext = [float(s.size[0]) if s.kind == "sphere" else float(np.linalg.norm(s.pos) + np.linalg.norm(s.size))
                for s in self._shapes[i]]
@@ -340,54 +444,104 @@ class PybulletAdapter(EngineAdapter):
     def _free(self, b) -> float:
         return 1.0 if (not self._articulated(b) and not self._fixed(b)) else 0.0
 
-    def _required(self) -> set:
-        """Pairs the manager needs listed this step whatever their gap (in
-        contact, or with a timing correction to remove)."""
-        return set(int(i) for i in self.manager.required_pairs)
+    def _fast_rows(self, bodies: _Bodies, grav, required) -> dict:
+        """Candidate rows of the pairs done all at once (a dict of
+        ContactKinematics fields) and the a_ext bookkeeping of all of them.
+        Same quantities as the pair-by-pair path: the contact point mid-overlap
+        for velocities and W (:meth:`_free_inverse_inertia` in closed form)."""
+        f = self._fast
+        j1, j2 = self._slot[f, 0], self._slot[f, 1]
+        rot1, rot2 = bodies.rot[j1], bodies.rot[j2]
+        c1 = bodies.com[j1] + np.einsum("kij,kj->ki", rot1, self._f_s1)
+        c2 = bodies.com[j2] + np.einsum("kij,kj->ki", rot2, self._f_s2)
+        k = f.size
+        x, nrm, point = np.empty(k), np.empty((k, 3)), np.empty((k, 3))
+        pl, sp = np.flatnonzero(self._f_plane), np.flatnonzero(~self._f_plane)
+        if pl.size:
+            det = _geometry.sphere_plane(c1[pl], self._f_r1[pl], c2[pl],
+                                         np.einsum("kij,kj->ki", rot2[pl], self._f_size2[pl]))
+            x[pl], nrm[pl], point[pl] = det.x, det.normal, det.point
+        if sp.size:
+            det = _geometry.sphere_sphere(c1[sp], self._f_r1[sp], c2[sp], self._f_size2[sp, 0])
+            x[sp], nrm[sp], point[sp] = det.x, det.normal, det.point
+        r1, r2 = point - bodies.com[j1], point - bodies.com[j2]
+        v_rel = (bodies.v[j1] + _cross(bodies.w[j1], r1)) - (bodies.v[j2] + _cross(bodies.w[j2], r2))
+        free1, free2 = self._b_free[j1], self._b_free[j2]
+        a0 = grav * (free1.astype(float) - free2.astype(float))[:, None]
+        a_ext = np.where(self._have_last[f][:, None], (v_rel - self._last_v_rel[f] - self._last_dv_own[f]) / self._dt,
+                         a0)
+        self._last_a_ext[f] = a_ext
+        self._last_v_rel[f], self._last_dv_own[f], self._have_last[f] = v_rel, 0.0, True
+        reach = closing_distance(-np.einsum("ij,ij->i", v_rel, nrm), -np.einsum("ij,ij->i", a_ext, nrm), self._dt,
+                                 CANDIDATE_FACTOR)
+        c = np.flatnonzero((x > -reach) | required[f])
+        j1c, j2c = j1[c], j2[c]
+        W = self._free_W(bodies, j1c, r1[c])
+        f2 = self._b_free[j2c]
+        if np.any(f2):
+            W[f2] += self._free_W(bodies, j2c[f2], r2[c][f2])
+        W_com = (self._b_inv_m[j1c] + self._b_inv_m[j2c])[:, None, None] * np.eye(3)
+        return dict(pair=f[c], x=x[c], normal=nrm[c], point=point[c], v_rel=v_rel[c],
+                    v_com_rel=bodies.v[j1c] - bodies.v[j2c], W=W, W_com=W_com, a_ext=a_ext[c])
+
+    def _free_W(self, bodies: _Bodies, j, r):
+        """1/m Id - [r]x I^-1 [r]x (k, 3, 3) of free bodies j at lever arms r (k, 3),
+        I^-1 = R diag(1/I) R^T in world axes (the inertial frame's axes are the principal ones)."""
+        R = bodies.rot[j]
+        Iinv = (R * self._b_inv_I[j][:, None, :]) @ R.transpose(0, 2, 1)
+        rx = _skew(r)
+        return self._b_inv_m[j][:, None, None] * np.eye(3) - rx @ Iinv @ rx
 
     # -- one step -------------------------------------------------------------
     def _step_once(self):
         dt = self._dt
         c = self.client
+        required = np.zeros(len(self.pairs), bool)
+        required[self.manager.required_pairs] = True  # in contact, or a timing correction to remove
+        bodies = self._read_bodies()
+        grav = self._gravity()
+        blocks = []
+        if self._fast.size:
+            blocks.append(self._fast_rows(bodies, grav, required))
         cand = []
-        W_of = {}
-        required = self._required()
-        for i, x, nrm, point, v_rel, v_com_rel, a_ext, poses in self._kinematics():
+        for i, x, nrm, point, v_rel, v_com_rel, a_ext, poses in self._kinematics(bodies, grav, required):
             closing = float(closing_distance(-(v_rel @ nrm), -(a_ext @ nrm), dt, CANDIDATE_FACTOR))
-            if x > -closing or i in required:
+            if x > -closing or required[i]:
                 W, Wc = self._inverse_inertia(i, poses, point)
-                W_of[i] = W
                 cand.append((i, x, nrm, point, v_rel, v_com_rel, W, Wc, a_ext))
             self._last_v_rel[i] = v_rel
             self._last_dv_own[i] = 0.0
             self._have_last[i] = True
+        shapes = dict(pair=(), x=(), normal=(3,), point=(3,), v_rel=(3,), v_com_rel=(3,), W=(3, 3), W_com=(3, 3),
+                      a_ext=(3,))
+        if cand or not blocks:
+            blocks.append({key: np.array([r[q] for r in cand], float).reshape((-1,) + shp)
+                           for q, (key, shp) in enumerate(shapes.items())})
+        cat = blocks[0] if len(blocks) == 1 else {key: np.concatenate([b[key] for b in blocks]) for key in shapes}
+        order = np.argsort(cat["pair"], kind="stable")
         # the manager steps every engine step, also with no candidate: it
         # completes finished records once their timing correction is gone
-        kin = ContactKinematics(
-            pair=np.array([r[0] for r in cand], int),
-            x=np.array([r[1] for r in cand], float),
-            normal=np.array([r[2] for r in cand], float).reshape(-1, 3),
-            point=np.array([r[3] for r in cand], float).reshape(-1, 3),
-            v_rel=np.array([r[4] for r in cand], float).reshape(-1, 3),
-            v_com_rel=np.array([r[5] for r in cand], float).reshape(-1, 3),
-            W=np.array([r[6] for r in cand], float).reshape(-1, 3, 3),
-            W_com=np.array([r[7] for r in cand], float).reshape(-1, 3, 3),
-            a_ext=np.array([r[8] for r in cand], float).reshape(-1, 3),
-            t=self.time,
-        )
+        kin = ContactKinematics(t=self.time, **{key: np.reshape(val[order], (-1,) + shapes[key])
+                                                for key, val in cat.items()})
+        kin.pair = kin.pair.astype(int)
         out = self.manager.step(kin)
-        for k, i in enumerate(np.asarray(out.pair, int)):
-            F = np.asarray(out.force[k], float)
-            if not np.any(F):
-                continue
-            P = np.asarray(out.point[k], float)
-            (u1, l1), (u2, l2) = self._bodies[i]
-            if not self._fixed((u1, l1)):
-                pb.applyExternalForce(u1, l1, F.tolist(), P.tolist(), pb.WORLD_FRAME, physicsClientId=c)
-            if not self._fixed((u2, l2)):
-                pb.applyExternalForce(u2, l2, (-F).tolist(), P.tolist(), pb.WORLD_FRAME, physicsClientId=c)
-            self._last_dv_own[i] = W_of[i] @ (F * dt)
-            self.impulse[i] += F * dt
+        pair = np.asarray(out.pair, int)
+        force = np.asarray(out.force, float)
+        hit = np.flatnonzero(np.any(force != 0.0, axis=1))
+        if hit.size:
+            ph, F = pair[hit], force[hit]
+            self._last_dv_own[ph] = np.einsum("kij,kj->ki", kin.W[hit], F * dt)
+            self.impulse[ph] += F * dt
+            slots = self._slot[ph]
+            fixed1, fixed2 = self._b_fixed[slots[:, 0]], self._b_fixed[slots[:, 1]]
+            Fl, Pl = F.tolist(), np.asarray(out.point, float)[hit].tolist()
+            for q, i in enumerate(ph.tolist()):
+                (u1, l1), (u2, l2) = self._bodies[i]
+                if not fixed1[q]:
+                    pb.applyExternalForce(u1, l1, Fl[q], Pl[q], pb.WORLD_FRAME, physicsClientId=c)
+                if not fixed2[q]:
+                    pb.applyExternalForce(u2, l2, [-Fl[q][0], -Fl[q][1], -Fl[q][2]], Pl[q], pb.WORLD_FRAME,
+                                          physicsClientId=c)
         pb.stepSimulation(physicsClientId=c)
         self._steps += 1
 
