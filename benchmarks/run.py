@@ -63,14 +63,15 @@ def markdown(records: list[dict], mach: dict, command: str) -> str:
     if ps:
         lines += ["## Per-step cost, N spheres on a plate (dt = 1 ms, medians)", "",
                   "| engine | N | MSF [ms] | built-in [ms] | no contact [ms] | MSF/built-in | MSF/no contact | "
-                  "MSF contacts |", "|---|---:|---:|---:|---:|---:|---:|---:|"]
+                  "MSF contacts | settled |", "|---|---:|---:|---:|---:|---:|---:|---:|---:|"]
         for r in ps:
             if r.get("failed"):
-                lines.append(f"| {r['engine']} | {r['n_bodies']} | failed: {r['reason']} | | | | | |")
+                lines.append(f"| {r['engine']} | {r['n_bodies']} | failed: {r['reason']} | | | | | | |")
                 continue
             lines.append(f"| {r['engine']} | {r['n_bodies']} | {_ms(r['msf_step_s'])} | {_ms(r['builtin_step_s'])} | "
                          f"{_ms(r['nocontact_step_s'])} | {_x(r['ratio_msf_over_builtin'])} | "
-                         f"{_x(r['ratio_msf_over_nocontact'])} | {r['msf_contacts_at_end']} |")
+                         f"{_x(r['ratio_msf_over_nocontact'])} | {r['msf_contacts_at_end']} | "
+                         f"{r.get('msf_settled_at_end', '')} |")
         lines.append("")
     sc = [r for r in records if r["name"] == "subcycling"]
     if sc:
