@@ -210,7 +210,10 @@ class PybulletAdapter(EngineAdapter):
         slot = {b: j for j, b in enumerate(body_list)}
         self._slot = np.array([[slot[b1], slot[b2]] for b1, b2 in self._bodies], int).reshape(-1, 2)
         B = len(body_list)
-        self._b_link = np.array([b[1] >= 0 for b in body_list], bool)
+        self._b_link = np.array([b[1] >= 0 for b in body_list], bool).reshape(B)
+        self._base_slots = np.flatnonzero(~self._b_link)
+        self._base_uids = [body_list[j][0] for j in self._base_slots]
+        self._link_slots = np.flatnonzero(self._b_link).tolist()
         self._b_fixed = np.array([self._fixed(b) for b in body_list], bool)
         self._b_inv_m = np.zeros(B)
         self._b_inv_I = np.zeros((B, 3))  # principal inverse inertia [1/(kg m^2)]
@@ -246,17 +249,20 @@ class PybulletAdapter(EngineAdapter):
     def _read_bodies(self) -> _Bodies:
         """Every body of the pairs, one read each (module docstring, step 1)."""
         c = self.client
+        pose, vel = pb.getBasePositionAndOrientation, pb.getBaseVelocity
+        # bases: tuples joined in Python and converted once (a numpy row per call costs more than the call)
+        base = np.array([p + o + v + w for (p, o), (v, w) in
+                         ((pose(u, physicsClientId=c), vel(u, physicsClientId=c)) for u in self._base_uids)],
+                        float).reshape(-1, 13)
         B = len(self._body_list)
-        com, q, v, w, frame = (np.empty((B, k)) for k in (3, 4, 3, 3, 3))
-        for j, (uid, link) in enumerate(self._body_list):
-            if link == -1:
-                pos, orn = pb.getBasePositionAndOrientation(uid, physicsClientId=c)
-                com[j], q[j], frame[j] = pos, orn, pos
-                v[j], w[j] = pb.getBaseVelocity(uid, physicsClientId=c)
-            else:
-                st = pb.getLinkState(uid, link, computeLinkVelocity=1, computeForwardKinematics=1,
-                                     physicsClientId=c)
-                com[j], q[j], frame[j], v[j], w[j] = st[0], st[1], st[4], st[6], st[7]
+        com, q, v, w = np.empty((B, 3)), np.empty((B, 4)), np.empty((B, 3)), np.empty((B, 3))
+        jb = self._base_slots
+        com[jb], q[jb], v[jb], w[jb] = base[:, 0:3], base[:, 3:7], base[:, 7:10], base[:, 10:13]
+        frame = com.copy()
+        for j in self._link_slots:
+            uid, link = self._body_list[j]
+            st = pb.getLinkState(uid, link, computeLinkVelocity=1, computeForwardKinematics=1, physicsClientId=c)
+            com[j], q[j], frame[j], v[j], w[j] = st[0], st[1], st[4], st[6], st[7]
         return _Bodies(com, _mats(q), v, w, frame)
 
     def _articulated(self, b):
