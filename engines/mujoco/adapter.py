@@ -389,14 +389,23 @@ class MujocoAdapter(EngineAdapter):
         if int(n) != n or n < 0:
             raise ValueError(f"n = {n!r} steps must be a whole number >= 0")
         ctx = contextlib.nullcontext() if self._installed else installed(self)
+        bad = int(mujoco.mjtWarning.mjWARN_BADQACC)
         with ctx:
             for _ in range(int(n)):
+                resets = self.data.warning[bad].number
                 self._armed, self._fresh = True, True
                 try:
                     mujoco.mj_step(self.model, self.data)
                 finally:
                     self._armed = False
                 self.steps += 1
+                if self.data.warning[bad].number != resets:
+                    # MuJoCo met a NaN/inf or a huge acceleration and reset the state
+                    # (unless autoreset is disabled): never continue silently
+                    raise RuntimeError(
+                        f"MuJoCo reported a bad acceleration at t = {self.data.time:.6g} s (step {self.steps}) "
+                        "and reset the simulation: the time step is too large for the model, or a body "
+                        "is too light for MuJoCo's inertia floor")
 
     def __enter__(self):
         self._ctx = installed(self)
