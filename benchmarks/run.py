@@ -135,14 +135,13 @@ def targets_md(records: list[dict]) -> list[str]:
     jet = find("jet", engine="mujoco")
     if jet and not jet.get("skipped"):
         rows.append(("jet in MuJoCo, impacts per CPU-second", jet["impacts_per_cpu_s"], ">= 5000"))
-        rows.append(("jet in MuJoCo, RSS change 1e4 -> 1e5 impacts [%]", jet["rss_growth"] * 100, "within +-10"))
+        rows.append(("jet in MuJoCo, RSS change 1e4 -> 1e5 impacts [%]", jet["rss_growth"] * 100, "|x| <= 10"))
     if not rows:
         return []
     out = ["## Targets (issue 5)", "", "| target | measured | wanted | met |", "|---|---:|---:|---|"]
     for what, val, want in rows:
-        op, lim = want.split()[0], want.split()[-1]
-        lim = float(lim)
-        met = val <= lim if op == "<=" else val >= lim if op == ">=" else abs(val) <= lim
+        op, lim = want.split()[-2], float(want.split()[-1])
+        met = abs(val) <= lim if want.startswith("|x|") else val <= lim if op == "<=" else val >= lim
         out.append(f"| {what} | {val:.3g} | {want} | {'yes' if met else 'no'} |")
     return out + [""]
 
