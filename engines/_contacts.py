@@ -426,6 +426,10 @@ class ContactManager:
         dt = float(dt)
         if not math.isfinite(dt) or dt <= 0:
             raise ValueError(f"dt = {dt!r} s must be finite and > 0")
+        #: keep each contact's step-averaged normal force per engine step and put it
+        #: in its record (inputs["curves"]); for isolated impacts, off for jets
+        self.history = False
+        self._hist: dict[int, list[tuple[float, float]]] = {}
         if not 0.0 <= settle_rate <= 1.0:
             raise ValueError(f"settle_rate = {settle_rate!r} must be in [0, 1]")
         for i, p in enumerate(pairs):
@@ -677,6 +681,10 @@ class ContactManager:
         J = y[:, _PI] / dt - 0.5 * y[:, _P] if self.timing_correction else np.zeros((k, 3))
         J[settled] = 0.0  # a force held over the whole step: its timing is the engine's
         self.settled[p] = settled
+        if self.history:
+            Pn = np.einsum("ki,ki->k", y[:, _P], batch.n) / dt
+            for r in np.flatnonzero(np.any(y[:, _P] != 0.0, axis=1)):
+                self._hist.setdefault(int(p[r]), []).append((t0, float(Pn[r])))
         impulse = y[:, _P] + J - self.J[p]
         self.J[p] = J
         self.dv_corr[p] = np.einsum("kij,kj->ki", W, J)
@@ -1063,9 +1071,18 @@ class ContactManager:
             if "omega1" in bi and lt > 0:
                 rec.spin_in = float(np.asarray(bi["omega1"], dtype=float) @ axis)
         if self._probe is None:
-            self.records.append(rec)
+            self._publish(p, rec)
         else:  # completed once the engine has applied the contact's last impulse (see pending_count)
             self._pending.append([p, rec, axis if lt > 0 else None, 0])
+
+    def _publish(self, p: int, rec: ImpactRecord) -> None:
+        """Move a completed record to ``records`` (with its force history when kept)."""
+        hist = self._hist.pop(p, None)
+        if self.history and hist:
+            t_on = float(rec.inputs.get("t_onset", 0.0))
+            rec.inputs["curves"] = {"t": [t - t_on for t, _ in hist], "F_n": [f for _, f in hist],
+                                    "kind": "step-averaged", "dt": self.dt}
+        self.records.append(rec)
 
     def _finish_pending(self, at_step_start: bool = False):
         """Complete the records whose pair has no timing correction in the engine
@@ -1085,12 +1102,12 @@ class ContactManager:
                     rec.inputs["body_out"] = {k: _plain(v) for k, v in bo.items()}
                     if "omega1" in bo and axis is not None:
                         rec.spin_out = float(np.asarray(bo["omega1"], dtype=float) @ axis)
-                self.records.append(rec)
+                self._publish(p, rec)
             elif waited > PENDING_MAX_STEPS:
                 rec.inputs["body_out"] = None
                 rec.inputs["body_out_unavailable"] = (
                     "the pair was in contact again before its bodies' post-impact state could be read")
-                self.records.append(rec)
+                self._publish(p, rec)
             else:
                 keep.append(entry)
         self._pending = keep

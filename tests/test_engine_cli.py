@@ -90,3 +90,22 @@ def test_json_stdout_is_clean_of_engine_banners():
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 0, p.stderr
     json.loads(p.stdout)
+
+
+#: The step-averaged forces of a record sum to its normal impulse m (1 + e) v;
+#: the timing correction (zero net impulse) is left out of the curve.
+IMPULSE_RTOL = 1e-9
+
+
+@pytest.mark.mujoco
+@pytest.mark.pybullet
+@pytest.mark.parametrize("engine", ["mujoco", "pybullet"])
+def test_engine_record_carries_the_force_it_applied(capsys, engine):
+    code, out, err = run(capsys, *BASE, "--engine", engine, "--dt", "5e-4", "--gap", "1e-4")
+    assert code == 0, err
+    d = json.loads(out)
+    c = d["inputs"]["curves"]
+    assert c["kind"] == "step-averaged" and len(c["t"]) == len(c["F_n"]) >= 4
+    m = d["inputs"]["mass_reduced"]
+    impulse = sum(f * c["dt"] for f in c["F_n"])
+    assert impulse == pytest.approx(m * (1 + d["cor_n"]) * 1.0, rel=IMPULSE_RTOL)

@@ -89,6 +89,7 @@ def run_impact(
         model, data = scenes.two_spheres(body1, body2, speed, angle_deg, spin, gap=gap, dt=dt,
                                          integrator=integrator, gravity=gravity)
     adapter = MujocoAdapter(model, data, [PairSpec("ball", _other(model), law, tangential)])
+    adapter.manager.history = True  # the record carries the step-averaged force-time curve
     m = reduced_mass(body1.mass, body2.mass)
     _, vn0 = scenes.initial_velocity(speed, angle_deg)
     tau_h = float(cf.hertz_tau(m, vn0, law.moduli.E, law.geom.R))

@@ -117,6 +117,7 @@ def run_impact(law: ForceLaw, body1: Body, body2: Body, speed: float, angle_deg:
                                   builtin=builtin, law=law)
     scene = _scene(body1, body2, speed, angle_deg, spin, dt, gap, gravity)
     with PybulletAdapter(scene.client, [PairSpec(scene.body1, scene.body2, law, tangential)]) as ad:
+        ad.manager.history = True  # the record carries the step-averaged force-time curve
         limit = int(math.ceil(_max_time(law, body1, body2, speed, angle_deg, dt, gap) / dt))
         for _ in range(limit):
             ad.step()
@@ -127,7 +128,7 @@ def run_impact(law: ForceLaw, body1: Body, body2: Body, speed: float, angle_deg:
                                f"(max time {limit * dt:.6g} s)")
         rec = ad.records[0]
     rec.inputs = dict(rec.inputs or {}, speed=speed, angle_deg=angle_deg, spin=spin, tangential=tangential,
-                      gap=gap, gravity=gravity,
+                      gap=gap, gravity=gravity, mass_reduced=reduced_mass(body1.mass, body2.mass),
                       body1={"material": body1.material.name, "radius": body1.radius, "mass": body1.mass},
                       body2={"material": body2.material.name, "radius": body2.radius, "mass": body2.mass})
     return rec

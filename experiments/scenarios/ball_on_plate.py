@@ -261,15 +261,24 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     # force-time curves of every record that has them
     curves = [r for r in rows if isinstance(r.get("inputs"), dict) and "curves" in r["inputs"]]
     if curves:
-        fig, ax = plt.subplots(figsize=(8, 4.5))
-        for r in sorted(curves, key=lambda r: (r["cell.engine"], r["cell.speed"])):
+        fig, ax = plt.subplots(figsize=(11, 4.8))
+        speeds = sorted({r["cell.speed"] for r in curves})
+        shade = {v: f"C{i}" for i, v in enumerate(speeds)}
+        for r in sorted(curves, key=lambda r: (r["cell.engine"] != "reference", r["cell.engine"], r["cell.speed"])):
             c = r["inputs"]["curves"]
-            ax.plot([t * 1e3 for t in c["t"]], c["F_n"],
-                    label=f"{r['cell.engine']} {r['cell.speed']:g} m/s, {r['cell.angle']:g} deg")
+            label = f"{r['cell.engine']} {r['cell.speed']:g} m/s, {r['cell.angle']:g} deg"
+            t_ms = [t * 1e3 for t in c["t"]]
+            if c.get("kind") == "step-averaged":  # an engine: the force it applied over each step
+                ax.step(t_ms + [t_ms[-1] + c["dt"] * 1e3], c["F_n"] + [c["F_n"][-1]], where="post", lw=1,
+                        ls="--" if r["cell.engine"].startswith("mujoco") else ":", color=shade[r["cell.speed"]],
+                        label=label + " (step-averaged)")
+            else:
+                ax.plot(t_ms, c["F_n"], lw=2, color=shade[r["cell.speed"]], alpha=0.6, label=label)
         ax.set_xlabel("time since onset [ms]")
         ax.set_ylabel("normal force F_n [N]")
+        ax.set_title("Normal force: the reference solver's curve and, for the engines, the force applied per step")
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, ncol=2)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         fig.tight_layout()
         save_figure_atomic(fig, out / "figures" / "force_time.png", dpi=110)
         plt.close(fig)
