@@ -26,12 +26,25 @@ What it does each engine step (``step``):
 pybullet's own response for the pairs is switched off with
 ``setCollisionFilterPair(..., enableCollision=0)``, so nothing is counted twice.
 
-The relative acceleration of the contact points from everything but these
-contacts (``a_ext``) is measured: the change of v_rel over the last step
-minus W times the impulse this adapter applied, over dt. Before the first
-step it is gravity for free bodies (a link's first-step acceleration from
-gravity and motors is not known and taken as zero; it is measured from the
-second step on).
+The relative acceleration of the contact points from everything but the
+managed contacts (``a_ext``) is measured: the change of v_rel over the last
+step minus the change the impulses of the pairs applied in that step caused
+(each including the manager's timing correction), over dt. That change is
+sum_q W_pq P_q with the cross inverse inertia W_pq = J_p M^-1 J_q^T between
+the contact points of pairs p and q (zero when they share no moving body):
+for free bodies in closed form (each body's impulse and angular impulse
+about its centre of mass summed over its pairs, then 1/m and I^-1), for
+links of a multibody through its Jacobians and mass matrix. Subtracting only
+the pair's own impulse counted a body's other contacts as outside
+acceleration one step late: a bead-bead impulse entered the bead's plate
+contact as a huge a_ext. The pairs whose force is held into the next step
+(:func:`held_forces`: resting contacts, and contacts the step resolves) are
+the exception: their step-averaged force is the best prediction of their
+force over the next step, so it is left in the other pairs' a_ext (without
+it a resting stack rests too deep, e.g. 80% at dt = 1 ms for rubber balls).
+Before the first step a_ext is gravity for free bodies (a link's first-step
+acceleration from gravity and motors is not known and taken as zero; it is
+measured from the second step on).
 """
 
 from __future__ import annotations
@@ -43,8 +56,8 @@ import numpy as np
 import pybullet as pb
 
 from engines import _geometry
-from engines._contacts import _skew, closing_distance, effective_inverse_inertia_free
-from engines.base import ContactKinematics, EngineAdapter, PairSpec
+from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance, effective_inverse_inertia_free
+from engines.base import STEPS_PER_CONTACT_MIN, ContactKinematics, EngineAdapter, PairSpec
 
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times
 #: the distance the surfaces can close in one step: a safety factor 2 on the
@@ -100,6 +113,21 @@ def _cross(a, b):
     out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
     out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
     return out
+
+
+def held_forces(manager, pair, t_next: float) -> np.ndarray:
+    """Which of the pairs ``pair`` (k,) hold their force into the next step
+    (starting at ``t_next``): in contact at the end of this step and either
+    resting (older than SETTLE_AFTER_DURATIONS estimated durations, or on the
+    settled path) or resolved by the engine step (an estimated duration of at
+    least STEPS_PER_CONTACT_MIN steps). Their step-averaged force predicts
+    their force over the next step, so it stays in the other pairs' a_ext; an
+    impact shorter than that (the whole contact, or most of it, inside a
+    step) has already given its impulse and is left out."""
+    act = manager.active[pair]
+    resting = (t_next - manager.t_onset[pair]) > SETTLE_AFTER_DURATIONS * manager.tau_est[pair]
+    resolved = manager.tau_est[pair] >= STEPS_PER_CONTACT_MIN * manager.dt
+    return act & (manager.settled[pair] | resting | resolved)
 
 
 @dataclass
@@ -162,7 +190,9 @@ class PybulletAdapter(EngineAdapter):
         self._setup_batches()
         n = len(self.pairs)
         self._last_v_rel = np.zeros((n, 3))
-        self._last_dv_own = np.zeros((n, 3))
+        #: the change of each pair's v_rel the last step's impulses caused (held forces excepted) [m/s] (n, 3)
+        self._last_dv = np.zeros((n, 3))
+        self._pt = np.zeros((n, 3))  #: each pair's contact point at the last step start [m] (n, 3)
         self._have_last = np.zeros(n, bool)
         self._last_a_ext = np.zeros((n, 3))
         #: total impulse this adapter applied on body 1 of each pair [N s] (n, 3)
@@ -425,7 +455,7 @@ class PybulletAdapter(EngineAdapter):
             v_rel = v1 - v2
             v_com_rel = poses[0].v - poses[1].v
             if self._have_last[i]:
-                a_ext = (v_rel - self._last_v_rel[i] - self._last_dv_own[i]) / self._dt
+                a_ext = (v_rel - self._last_v_rel[i] - self._last_dv[i]) / self._dt
             else:
                 a_ext = grav * (self._free(b1) - self._free(b2))
             self._last_a_ext[i] = a_ext
@@ -474,10 +504,11 @@ class PybulletAdapter(EngineAdapter):
         v_rel = (bodies.v[j1] + _cross(bodies.w[j1], r1)) - (bodies.v[j2] + _cross(bodies.w[j2], r2))
         free1, free2 = self._b_free[j1], self._b_free[j2]
         a0 = grav * (free1.astype(float) - free2.astype(float))[:, None]
-        a_ext = np.where(self._have_last[f][:, None], (v_rel - self._last_v_rel[f] - self._last_dv_own[f]) / self._dt,
+        a_ext = np.where(self._have_last[f][:, None], (v_rel - self._last_v_rel[f] - self._last_dv[f]) / self._dt,
                          a0)
         self._last_a_ext[f] = a_ext
-        self._last_v_rel[f], self._last_dv_own[f], self._have_last[f] = v_rel, 0.0, True
+        self._last_v_rel[f], self._last_dv[f], self._have_last[f] = v_rel, 0.0, True
+        self._pt[f] = point
         reach = closing_distance(-np.einsum("ij,ij->i", v_rel, nrm), -np.einsum("ij,ij->i", a_ext, nrm), self._dt,
                                  CANDIDATE_FACTOR)
         c = np.flatnonzero((x > -reach) | required[f])
@@ -516,8 +547,9 @@ class PybulletAdapter(EngineAdapter):
                 W, Wc = self._inverse_inertia(i, poses, point)
                 cand.append((i, x, nrm, point, v_rel, v_com_rel, W, Wc, a_ext))
             self._last_v_rel[i] = v_rel
-            self._last_dv_own[i] = 0.0
+            self._last_dv[i] = 0.0
             self._have_last[i] = True
+            self._pt[i] = point
         shapes = dict(pair=(), x=(), normal=(3,), point=(3,), v_rel=(3,), v_com_rel=(3,), W=(3, 3), W_com=(3, 3),
                       a_ext=(3,))
         if cand or not blocks:
@@ -536,7 +568,7 @@ class PybulletAdapter(EngineAdapter):
         hit = np.flatnonzero(np.any(force != 0.0, axis=1))
         if hit.size:
             ph, F = pair[hit], force[hit]
-            self._last_dv_own[ph] = np.einsum("kij,kj->ki", kin.W[hit], F * dt)
+            self._cross_dv(bodies, ph, F * dt, kin.W[hit])
             self.impulse[ph] += F * dt
             slots = self._slot[ph]
             fixed1, fixed2 = self._b_fixed[slots[:, 0]], self._b_fixed[slots[:, 1]]
@@ -550,6 +582,68 @@ class PybulletAdapter(EngineAdapter):
                                           physicsClientId=c)
         pb.stepSimulation(physicsClientId=c)
         self._steps += 1
+
+    def _cross_dv(self, bodies: _Bodies, ph, P, W_own) -> None:
+        """Keep, for the next step's a_ext, the change of every pair's v_rel
+        that the impulses P (k, 3) on body 1 of the pairs ph (k,) cause:
+        sum_q W_pq P_q over the pairs whose force is not held
+        (:func:`held_forces`), plus a held pair's own W_pp P_p (module
+        docstring). Free bodies in closed form, all pairs at once; links of
+        multibodies through J M^-1 J^T."""
+        keep = held_forces(self.manager, ph, self.time + self._dt)
+        W_own_keep = W_own[keep]
+        P_keep, ph_keep = P[keep], ph[keep]
+        ph, P = ph[~keep], P[~keep]
+        if ph.size:
+            B = len(self._body_list)
+            s1, s2 = self._slot[ph, 0], self._slot[ph, 1]
+            pt = self._pt[ph]
+            # impulse and angular impulse about the centre of mass on every body (+P on 1, -P on 2)
+            lin, ang = np.zeros((B, 3)), np.zeros((B, 3))
+            np.add.at(lin, s1, P)
+            np.add.at(lin, s2, -P)
+            np.add.at(ang, s1, _cross(pt - bodies.com[s1], P))
+            np.add.at(ang, s2, -_cross(pt - bodies.com[s2], P))
+            moved = np.any(lin != 0.0, axis=1) | np.any(ang != 0.0, axis=1)
+            free = moved & self._b_free
+            dv_b, dw_b = np.zeros((B, 3)), np.zeros((B, 3))
+            if np.any(free):
+                j = np.flatnonzero(free)
+                R = bodies.rot[j]
+                dv_b[j] = lin[j] * self._b_inv_m[j][:, None]
+                dw_b[j] = np.einsum("kij,kj->ki", R, self._b_inv_I[j] * np.einsum("kji,kj->ki", R, ang[j]))
+                q = np.flatnonzero(free[self._slot[:, 0]] | free[self._slot[:, 1]])
+                a1, a2 = self._slot[q, 0], self._slot[q, 1]
+                self._last_dv[q] = ((dv_b[a1] + _cross(dw_b[a1], self._pt[q] - bodies.com[a1]))
+                                    - (dv_b[a2] + _cross(dw_b[a2], self._pt[q] - bodies.com[a2])))
+            links = moved & self._b_link
+            if np.any(links):
+                self._cross_dv_links(bodies, ph, P, links)
+        for q, i in enumerate(ph_keep.tolist()):
+            self._last_dv[i] += W_own_keep[q] @ P_keep[q]
+
+    def _cross_dv_links(self, bodies: _Bodies, ph, P, links) -> None:
+        """The links' share of :meth:`_cross_dv`: for each multibody hit,
+        dq = M^-1 sum_q J_q^T P_q, then J_p dq for every pair with a link of it."""
+        uids = {self._body_list[j][0] for j in np.flatnonzero(links)}
+        for uid in uids:
+            Q = None
+            for q, i in enumerate(ph.tolist()):
+                for side, sign in ((0, 1.0), (1, -1.0)):
+                    j = self._slot[i, side]
+                    b = self._body_list[j]
+                    if self._b_link[j] and b[0] == uid:
+                        JtP = sign * self._jacobian(b, bodies.pose(j), self._pt[i]).T @ P[q]
+                        Q = JtP if Q is None else Q + JtP
+            if Q is None:
+                continue
+            dq = np.linalg.solve(self._mass_matrix(uid), Q)
+            for i in range(len(self._bodies)):
+                for side, sign in ((0, 1.0), (1, -1.0)):
+                    j = self._slot[i, side]
+                    b = self._body_list[j]
+                    if self._b_link[j] and b[0] == uid:
+                        self._last_dv[i] += sign * self._jacobian(b, bodies.pose(j), self._pt[i]) @ dq
 
     # -- records ----------------------------------------------------------------
     def _probe(self, i) -> dict:
