@@ -42,6 +42,7 @@ point minus body 2's.
 from __future__ import annotations
 
 import abc
+import math
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -172,6 +173,23 @@ def get_engine(name: str) -> Callable[..., Any]:
         raise ValueError(
             f"unknown engine {name!r}; valid names: mujoco, mujoco-builtin, pybullet, pybullet-builtin"
         ) from None
+
+
+#: The law's radii must be the engine shapes' (float32/float64 round trips only).
+RADIUS_RTOL = 1e-9
+
+
+def check_law_curvature(label: str, pair: PairSpec, R1: float, R2: float) -> None:
+    """Refuse a pair whose law was built for other radii than the engine's
+    shapes: R1 body 1's sphere radius [m], R2 body 2's (inf for a plane or box face)."""
+    curv = pair.law.curvature
+    for name, want, got in (("R1a", R1, curv.R1a), ("R1b", R1, curv.R1b),
+                            ("R2a", R2, curv.R2a), ("R2b", R2, curv.R2b)):
+        same = (math.isinf(want) and math.isinf(got)) or (
+            math.isfinite(want) and math.isfinite(got) and abs(got - want) <= RADIUS_RTOL * want)
+        if not same:
+            raise ValueError(f"{label}: the law's curvature {name} = {got!r} m does not match the engine shape's "
+                             f"radius {want!r} m of {pair.body1 if name[1] == '1' else pair.body2!r}")
 
 
 def as_array(a, shape) -> np.ndarray:

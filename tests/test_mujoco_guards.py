@@ -29,3 +29,12 @@ def test_bad_acceleration_reset_raises():
     data.xfrc_applied[1, 2] = 1e20  # an acceleration far above MuJoCo's bound
     with pytest.raises(RuntimeError, match="bad acceleration"):
         adapter.step(1)
+
+
+@pytest.mark.mujoco
+def test_law_for_another_radius_is_refused():
+    model = mujoco.MjModel.from_xml_string(XML)
+    data = mujoco.MjData(model)
+    law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(0.03))
+    with pytest.raises(ValueError, match="curvature R1a = 0.03 m does not match the engine shape's radius 0.02"):
+        MujocoAdapter(model, data, [PairSpec("ball", "floor", law)])

@@ -74,7 +74,14 @@ import numpy as np
 
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
 from engines._geometry import Detection, sphere_box_face, sphere_plane, sphere_sphere
-from engines.base import STEPS_PER_CONTACT_MIN, ContactForces, ContactKinematics, EngineAdapter, PairSpec
+from engines.base import (
+    STEPS_PER_CONTACT_MIN,
+    ContactForces,
+    ContactKinematics,
+    EngineAdapter,
+    PairSpec,
+    check_law_curvature,
+)
 
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times the
 #: distance the surfaces can close in one step (closing speed dt plus the
@@ -83,9 +90,6 @@ from engines.base import STEPS_PER_CONTACT_MIN, ContactForces, ContactKinematics
 #: required_pairs (in contact, or with a timing correction to remove) are
 #: always listed.
 CANDIDATE_FACTOR = 2.0
-#: A law's curvature and the geoms' radii must agree to this relative
-#: tolerance (a law built for another ball would give wrong forces silently).
-RADIUS_RTOL = 1e-9
 
 _GEOM_NAMES = {
     mujoco.mjtGeom.mjGEOM_PLANE: "plane", mujoco.mjtGeom.mjGEOM_HFIELD: "hfield",
@@ -405,14 +409,7 @@ class MujocoAdapter(EngineAdapter):
                              f"(the normal points from body2 to body1)")
         R1 = float(m.geom_size[g1, 0])
         R2 = float(m.geom_size[g2, 0]) if t2 == "sphere" else math.inf
-        curv = p.law.curvature
-        for label, want, got in (("R1a", R1, curv.R1a), ("R1b", R1, curv.R1b),
-                                 ("R2a", R2, curv.R2a), ("R2b", R2, curv.R2b)):
-            same = (math.isinf(want) and math.isinf(got)) or (
-                math.isfinite(want) and math.isfinite(got) and abs(got - want) <= RADIUS_RTOL * want)
-            if not same:
-                raise ValueError(f"pair {i}: the law's curvature {label} = {got!r} m does not match the geom "
-                                 f"radius {want!r} m of {p.body1 if label[1] == '1' else p.body2!r}")
+        check_law_curvature(f"pair {i}", p, R1, R2)
         why = _mujoco_contact_on(m, g1, g2, self._excluded)
         if why is not None:
             raise ValueError(f"pair {i} ({p.body1!r}, {p.body2!r}): MuJoCo's own contact is on ({why}); "

@@ -57,15 +57,12 @@ import pybullet as pb
 
 from engines import _geometry
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance, effective_inverse_inertia_free
-from engines.base import STEPS_PER_CONTACT_MIN, ContactKinematics, EngineAdapter, PairSpec
+from engines.base import STEPS_PER_CONTACT_MIN, ContactKinematics, EngineAdapter, PairSpec, check_law_curvature
 
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times
 #: the distance the surfaces can close in one step: a safety factor 2 on the
 #: constant-acceleration prediction, since a_ext is an estimate.
 CANDIDATE_FACTOR = 2.0
-#: A law's curvature and the shapes' radii must agree to this relative
-#: tolerance (a law built for another ball would give wrong forces silently).
-RADIUS_RTOL = 1e-9
 
 _SHAPE_NAMES = {pb.GEOM_SPHERE: "sphere", pb.GEOM_BOX: "box", pb.GEOM_CAPSULE: "capsule",
                 pb.GEOM_CYLINDER: "cylinder", pb.GEOM_PLANE: "plane", pb.GEOM_MESH: "mesh"}
@@ -666,11 +663,4 @@ def _check_curvature(i, p: PairSpec, s1: _Shape, s2: _Shape) -> None:
     """The law's radii must be the shapes' (body 1's radii are R1a, R1b)."""
     R1 = float(s1.size[0]) if s1.kind == "sphere" else math.inf
     R2 = float(s2.size[0]) if s2.kind == "sphere" else math.inf
-    curv = p.law.curvature
-    for label, want, got in (("R1a", R1, curv.R1a), ("R1b", R1, curv.R1b),
-                             ("R2a", R2, curv.R2a), ("R2b", R2, curv.R2b)):
-        same = (math.isinf(want) and math.isinf(got)) or (
-            math.isfinite(want) and math.isfinite(got) and abs(got - want) <= RADIUS_RTOL * want)
-        if not same:
-            raise ValueError(f"pairs[{i}]: the law's curvature {label} = {got!r} m does not match the collision "
-                             f"shape's radius {want!r} m of {p.body1 if label[1] == '1' else p.body2}")
+    check_law_curvature(f"pairs[{i}]", p, R1, R2)
