@@ -86,9 +86,10 @@ import numpy as np
 
 from msf_contact import closed_forms as cf
 from msf_contact.geometry import area
-from msf_contact.laws import ForceLaw, MSFLaw
+from msf_contact.laws import ForceLaw, HertzLaw, HuntCrossleyLaw, KuwabaraKonoLaw, MSFLaw, SpringDashpotLaw
 from msf_contact.record import ImpactRecord
 
+from . import _kernel as K
 from .base import STEPS_PER_CONTACT_MIN, ContactForces, ContactKinematics, PairSpec, as_array
 
 TANGENTIAL_MODES = ("contact-point", "paper")
@@ -397,6 +398,52 @@ def _find_root(g, lo, hi, g_lo, g_hi):
     return hi
 
 
+#: The tuning constants above, in the order of engines._kernel's C_* indices.
+_KCST = np.array([SETTLED_SPEED_RATIO, SETTLED_NEWTON_MAX, SETTLED_VTOL, SETTLED_FD_REL, F_RATIO_FLOOR, ROOT_ITER,
+                  ROOT_TOL, SETTLE_AFTER_DURATIONS], dtype=float)
+_KP_MODES = {"msf": K.KP_MSF, "msf-small": K.KP_SMALL, "hertz": K.KP_HERTZ}
+_KERNEL_CODES = {MSFLaw: K.CODE_MSF, HertzLaw: K.CODE_HERTZ, KuwabaraKonoLaw: K.CODE_KK,
+                 HuntCrossleyLaw: K.CODE_HC, SpringDashpotLaw: K.CODE_SD}
+#: The methods whose registry versions the kernel compiles: a subclass that
+#: overrides any of them runs on the numpy path.
+_KERNEL_METHODS = ("normal_force", "separation_indicator", "tangential_stiffness", "tangential_force",
+                   "contact_normal_force", "kp", "psi", "shear_lengths", "outside")
+
+
+def kernel_law(law: ForceLaw):
+    """(code, constants (NLC,)) of the compiled kernel for this law, or None
+    when the kernel does not know it (a class outside the registry, or a
+    registry class with a force method overridden): that law runs on the
+    numpy path."""
+    base = next((c for c in _KERNEL_CODES if isinstance(law, c)), None)
+    if base is None:
+        return None
+    t = type(law)
+    if any(getattr(t, m, None) is not getattr(base, m, None) for m in _KERNEL_METHODS):
+        return None
+    if law.kp_mode not in _KP_MODES:
+        return None
+    g = law.geom
+    lc = np.zeros(K.NLC)
+    lc[K.LC_RA], lc[K.LC_RB], lc[K.LC_KHA], lc[K.LC_KHB] = g.R_a, g.R_b, g.k_ha, g.k_hb
+    lc[K.LC_MU] = math.nan if law.mu is None else float(law.mu)
+    lc[K.LC_K] = float(getattr(law, "K", 0.0))
+    lc[K.LC_A] = float(getattr(law, "A", 0.0))
+    lc[K.LC_GM], lc[K.LC_RM] = law.moduli.G, g.R
+    lc[K.LC_FZ] = 1.0 if law.separation == "force-zero" else 0.0
+    lc[K.LC_KPMODE] = _KP_MODES[law.kp_mode]
+    return _KERNEL_CODES[base], lc
+
+
+class _Rows:
+    """The rows' normals, inverse inertias and external accelerations for
+    :meth:`ContactManager._begin` on the compiled path (the part of _Batch it reads)."""
+
+    def __init__(self, n, W, a):
+        self.n, self.W, self.a = n, W, a
+        self.onset: dict = {}
+
+
 class ContactManager:
     """Per-contact state, sub-cycled integration and impact records for the
     pairs of one adapter (see the module docstring).
@@ -406,7 +453,10 @@ class ContactManager:
     into the records. settle_rate: share of the engine-internal offset of x
     removed per step in a resting contact (0 disables). settled_path: take the
     settled path for long, slow contacts (False: sub-cycle every contact, the
-    plain implementation the settled path is tested against).
+    plain implementation the settled path is tested against). compiled: run
+    the groups whose law the compiled kernel knows (:func:`kernel_law`) in
+    :mod:`engines._kernel` (False: the numpy path for every group, the
+    implementation the kernel is tested against).
 
     Adapter hooks (optional, :meth:`set_body_probe`): a function
     ``probe(pair_index) -> dict`` returning body-level quantities, read at
@@ -420,7 +470,7 @@ class ContactManager:
     """
 
     def __init__(self, pairs: list[PairSpec], dt: float, engine: str, *, settle_rate: float = SETTLE_RATE,
-                 timing_correction: bool = True, settled_path: bool = True):
+                 timing_correction: bool = True, settled_path: bool = True, compiled: bool = True):
         if not pairs:
             raise ValueError("pairs is empty: give at least one PairSpec")
         dt = float(dt)
@@ -458,6 +508,9 @@ class ContactManager:
             sizes[g] = self._pos[i] + 1
         self._group_size = sizes
         self._onset: dict[int, dict[str, np.ndarray]] = {g: {} for g in self._groups}
+        #: per law group: (code, constants) of the compiled kernel, or None (numpy path)
+        self.compiled = bool(compiled)
+        self._kernel_law = {g: (kernel_law(law) if self.compiled else None) for g, law in self._groups.items()}
         self._probe: Callable[[int], dict] | None = None
         self._init_state(P)
         self.records: list[ImpactRecord] = []
@@ -467,35 +520,40 @@ class ContactManager:
     # ------------------------------------------------------------ state --
     def _init_state(self, P):
         z, z3 = np.zeros(P), np.zeros((P, 3))
+        # the per-pair record bookkeeping lives in one (NF, P) array (the compiled
+        # kernel updates it in place); the attributes below are its rows
+        self._fl = np.zeros((K.NF, P))
+        fl = self._fl
         self.active = np.zeros(P, bool)  #: in contact (P,)
         self.x = z.copy()  #: internal approach [m] (P,)
         self.xdot = z.copy()  #: approach rate at the end of the last step [m/s] (P,)
         self.s = z3.copy()  #: tangential displacement, world, in the contact plane [m] (P, 3)
         self.phase = np.zeros(P, np.int8)  #: 0 compression (x' > 0), 1 restitution
         self.turned = np.zeros(P, bool)  #: maximum compression passed at least once
-        self.t_onset = z.copy()  #: onset time [s]
+        self.t_onset = fl[K.F_TONSET]  #: onset time [s]
         self.v_n_in = z.copy()  #: closing speed at onset [m/s]
         self.v_n_used = z.copy()  #: onset speed given to law.onset (>= floor) [m/s]
         self.m_eff = z.copy()  #: 1/(n W n) at onset [kg]
         self.tau_est = z.copy()  #: estimated duration of the normal impact [s]
-        self.h = z.copy()  #: internal step [s]
+        self.h = fl[K.F_H]  #: internal step [s]
         self.n_in = z3.copy()  #: normal at onset (P, 3)
         self.p_in = z3.copy()  #: contact point at the start of the onset step [m] (P, 3)
         self._point = z3.copy()  #: contact points of the current step's rows [m] (P, 3)
         self.u_in = z3.copy()  #: contact-point tangential velocity at onset [m/s] (P, 3)
         self.vc_in = z3.copy()  #: centre-of-mass relative tangential velocity at onset [m/s] (P, 3)
         self.vc = z3.copy()  #: centre-of-mass relative velocity at the end of the last step [m/s] (P, 3)
-        self.x_max = z.copy()  #: maximum approach so far [m]
-        self.x_turn = z.copy()  #: approach at the first maximum compression [m]
-        self.tau1 = z.copy()  #: compression time [s]
-        self.F_max = z.copy()  #: peak normal force [N]
-        self.x_at_F = z.copy()  #: approach at the peak force [m]
-        self.f_min = np.full(P, np.inf)  #: min |F_t|/F_n [-]
-        self.f_max = z.copy()  #: max |F_t|/F_n [-]
+        self.x_max = fl[K.F_XMAX]  #: maximum approach so far [m]
+        self.x_turn = fl[K.F_XTURN]  #: approach at the first maximum compression [m]
+        self.tau1 = fl[K.F_TAU1]  #: compression time [s]
+        self.F_max = fl[K.F_FMAX]  #: peak normal force [N]
+        self.x_at_F = fl[K.F_XATF]  #: approach at the peak force [m]
+        self.f_min = fl[K.F_FMIN]  #: min |F_t|/F_n [-]
+        self.f_min[:] = np.inf
+        self.f_max = fl[K.F_FMAXR]  #: max |F_t|/F_n [-]
         self.W_el = z.copy()  #: work of the elastic normal force so far [J]
         self.W_visc = z.copy()  #: work of the viscous normal force so far [J]
-        self.W_el_comp = z.copy()
-        self.W_visc_comp = z.copy()
+        self.W_el_comp = fl[K.F_WELC]
+        self.W_visc_comp = fl[K.F_WVIC]
         self.Q_t = z.copy()  #: tangential viscous work (80) [J]
         self.W_t = z.copy()  #: work done against the tangential force [J]
         self.outside = np.zeros(P, bool)
@@ -504,6 +562,7 @@ class ContactManager:
         self.dv_corr = z3.copy()  #: W J: the engine's contact-point velocity offset it causes [m/s] (P, 3)
         self.dvc_corr = z3.copy()  #: W_com J [m/s] (P, 3)
         self.body_in: list[dict | None] = [None] * P
+        self._oc = np.full((P, K.NOC), np.nan)  #: onset constants per pair for the compiled kernel
 
     @property
     def active_count(self) -> int:
@@ -580,38 +639,104 @@ class ContactManager:
                           ("W", W), ("W_com", Wc), ("a_ext", a)):
             if arr.shape[0] != k:
                 raise ValueError(f"kinematics.{name} has {arr.shape[0]} rows; expected {k} (len(pair))")
-            if not np.all(np.isfinite(arr)):
-                raise ValueError(f"kinematics.{name} is not finite: {arr!r}")
-        if k and (pair.min() < 0 or pair.max() >= len(self.pairs)):
-            raise ValueError(f"kinematics.pair = {pair!r} has indices outside [0, {len(self.pairs) - 1}]")
-        listed = np.zeros(len(self.pairs), bool)
-        listed[pair] = True
-        if np.count_nonzero(listed) != k:
-            raise ValueError(f"kinematics.pair = {pair!r} lists a pair twice (one contact per pair)")
-        nn = np.linalg.norm(n, axis=1)
-        if np.any(np.abs(nn - 1.0) > 1e-6):
-            raise ValueError(f"kinematics.normal must be unit vectors, norms {nn!r}")
-        n = n / nn[:, None] if k else n
+        code, row = K.check(pair, len(self.pairs), x, n, point, v, vc, W, Wc, a, self.active, self.J)
+        if code:
+            self._invalid(code, row, pair, x, n, point, v, vc, W, Wc, a)
+        if k:
+            n = n / np.sqrt(np.einsum("ij,ij->i", n, n))[:, None]
         t0 = float(kin.t)
-        missing = np.flatnonzero((self.active | np.any(self.J != 0.0, axis=1)) & ~listed)  # required_pairs
-        if missing.size:
-            raise ValueError(f"kinematics.pair = {pair!r} lacks pairs {missing!r} that are in contact or have a "
-                             "timing correction to remove: list manager.required_pairs every step")
         force = np.zeros((k, 3))
         self._point[pair] = point
         info = {"rows": k, "substeps": 0, "segments": 0, "onsets": 0, "ends": 0, "settled": 0,
                 "settled_iterations": 0}
         for g, law in self._groups.items():
-            rows = np.flatnonzero(self._group_of[pair] == g)
-            if rows.size == 0:
-                continue
-            P = self._step_group(g, law, pair[rows], x[rows], n[rows], v[rows], vc[rows], W[rows], Wc[rows],
-                                 a[rows], t0, info)
+            if len(self._groups) == 1:
+                rows = slice(None)
+            else:
+                rows = np.flatnonzero(self._group_of[pair] == g)
+                if rows.size == 0:
+                    continue
+            step_group = self._step_group if self._kernel_law[g] is None else self._step_group_compiled
+            P = step_group(g, law, pair[rows], x[rows], n[rows], v[rows], vc[rows], W[rows], Wc[rows], a[rows],
+                           t0, info)
             force[rows] = P / self.dt
         self.last_step_info = info
         return ContactForces(force=force, point=point.copy(), pair=pair.copy())
 
+    def _invalid(self, code, row, pair, x, n, point, v, vc, W, Wc, a):
+        """Raise the ValueError for what :func:`engines._kernel.check` found."""
+        if code == 1:
+            raise ValueError(f"kinematics.pair = {pair!r} has indices outside [0, {len(self.pairs) - 1}]")
+        if code == 2:
+            raise ValueError(f"kinematics.pair = {pair!r} lists a pair twice (one contact per pair)")
+        if code == 3:
+            for name, arr in (("x", x), ("normal", n), ("point", point), ("v_rel", v), ("v_com_rel", vc),
+                              ("W", W), ("W_com", Wc), ("a_ext", a)):
+                if not np.all(np.isfinite(arr[row])):
+                    raise ValueError(f"kinematics.{name} is not finite: {arr!r}")
+        if code == 4:
+            raise ValueError(f"kinematics.normal must be unit vectors, norms {np.linalg.norm(n, axis=1)!r}")
+        if code == 5:
+            missing = np.flatnonzero((self.active | np.any(self.J != 0.0, axis=1)) & ~np.isin(
+                np.arange(len(self.pairs)), pair))
+            raise ValueError(f"kinematics.pair = {pair!r} lacks pairs {missing!r} that are in contact or have a "
+                             "timing correction to remove: list manager.required_pairs every step")
+        raise RuntimeError(f"engines._kernel.check returned an unknown code {code!r}")
+
     # ---------------------------------------------------- one law group --
+    def _step_group_compiled(self, g, law, p, x_eng, n, v, vc, W, Wc, a, t0, info):
+        """_step_group in the compiled kernel (engines._kernel); law.onset and
+        the records stay here, called for the rows the kernel stops at."""
+        code, lc = self._kernel_law[g]
+        dt = self.dt
+        k = p.shape[0]
+        paper = self._paper[p]
+        y = np.empty((k, NY))
+        T = np.empty((k, 2, 3))
+        t_loc = np.empty(k)
+        in_c = np.empty(k, bool)
+        settled = np.empty(k, bool)
+        status = np.empty(k, np.int8)
+        ended_by = np.zeros(k, np.int8)
+        ints = np.zeros(4, np.int64)
+        fl, oc = self._fl, self._oc
+        K.prelude(_KCST, p, x_eng, n, v, vc, W, Wc, a, paper, t0, dt, self.settle_rate, self.settled_path, code, lc,
+                  oc, self.active, self.x, self.s, self.tau_est, self.dv_corr, self.dvc_corr, self.W_el,
+                  self.W_visc, self.Q_t, self.W_t, y, T, t_loc, in_c, settled, status, self.turned, fl, ints)
+        for _ in range(MAX_SEGMENTS):
+            info["segments"] += 1
+            stopped = K.advance(_KCST, p, n, T, W, Wc, a, paper, code, lc, oc, t0, dt, self.h, y, t_loc, in_c,
+                                status, ended_by, self.turned, fl, ints)
+            if not stopped:
+                break
+            for r in np.flatnonzero(status == K.ST_ENDED):
+                self._end(int(p[r]), y[r], float(t0 + t_loc[r]),
+                          "force-zero" if ended_by[r] == K.END_FORCE else "overlap-zero", n[r])
+                in_c[r] = False
+            new = np.flatnonzero(status == K.ST_ONSET)
+            if new.size:
+                self._begin(g, law, p, new, y, _Rows(n, W, a), t0 + t_loc[new])
+                store, pp = self._onset[g], p[new]
+                for j, key in enumerate(K.ONSET_KEYS[code]):
+                    oc[pp, j] = store[key][self._pos[pp]]
+                in_c[new] = True
+                info["onsets"] += int(new.size)
+        else:
+            raise RuntimeError(f"more than {MAX_SEGMENTS} contact onsets/separations in one step of {dt!r} s")
+        impulse = np.empty((k, 3))
+        K.finale(p, n, W, Wc, settled, in_c, y, dt, self.timing_correction, lc, self.active, self.x, self.xdot,
+                 self.s, self.vc, self.W_el, self.W_visc, self.Q_t, self.W_t, self.phase, self.outside,
+                 self.settled, self.J, self.dv_corr, self.dvc_corr, impulse)
+        info["settled"] += int(ints[0])
+        info["settled_iterations"] += int(ints[1])
+        info["substeps"] += int(ints[2])
+        info["ends"] += int(ints[3])
+        if self.history:
+            Pn = np.einsum("ki,ki->k", y[:, _P], n) / dt
+            for r in np.flatnonzero(np.any(y[:, _P] != 0.0, axis=1)):
+                self._hist.setdefault(int(p[r]), []).append((t0, float(Pn[r])))
+        return impulse
+
     def _step_group(self, g, law, p, x_eng, n, v, vc, W, Wc, a, t0, info):
         dt = self.dt
         k = p.shape[0]

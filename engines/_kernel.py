@@ -1,0 +1,724 @@
+"""Compiled (numba) core of :class:`engines._contacts.ContactManager`.
+
+The same algorithm as the manager's numpy path (module docstring of
+:mod:`engines._contacts`), written per contact row with scalar arithmetic
+and compiled, for the five registry laws of :mod:`msf_contact.laws` used
+unchanged (their classes not subclassed with other force methods). Per
+engine step the manager calls
+
+1. :func:`prelude`: the internal state y (k, NY) of each candidate row
+   (timing correction removed, resting relaxation, tangential displacement
+   re-projected), then the settled path (one backward-Euler step of the law,
+   solved by Newton) for the rows that qualify;
+2. :func:`advance`, repeatedly: each row moves through its step (free
+   flight in closed form, RK4 sub-cycling with the maximum compression and
+   the separation located by Illinois root finding on a partial RK4 step)
+   until the step is over, or an onset (law.onset is Python: the manager
+   computes the onset constants and calls again) or a separation (the
+   manager writes the record, in Python) stops it;
+3. :func:`finale`: the state written back, the timing correction and the
+   step's impulse per row.
+
+The force laws (``CODE_*``), each as in :mod:`msf_contact.laws`:
+MSF (37) with k_p of (15) in the law's mode and the tangential (36)-(37);
+Hertz (30), Kuwabara-Kono, Hunt-Crossley and the linear spring-dashpot with
+the Hertz-Mindlin tangential stiffness 8 G sqrt(R x); the Coulomb cap
+mu F_n when mu is set. Onset constants per row ``oc`` (k, NOC): see
+:data:`ONSET_KEYS`. Law constants ``lc`` (NLC,): see ``LC_*``.
+
+Equality with the numpy path is tested (tests/test_kernel.py); the two
+differ only where the numpy path treats rows in lock-step (one internal
+step for all rows of a batch, Newton iterated until every row converged).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# law codes
+CODE_MSF, CODE_HERTZ, CODE_KK, CODE_HC, CODE_SD = 0, 1, 2, 3, 4
+#: Onset constants each law's rows carry, in the order of the columns of oc.
+ONSET_KEYS = {CODE_MSF: ("E", "eta_E", "G", "eta_Gy", "eta_Gz"), CODE_HERTZ: (), CODE_KK: (),
+              CODE_HC: ("chi",), CODE_SD: ("k", "c")}
+NOC = 5
+# law constants
+LC_RA, LC_RB, LC_KHA, LC_KHB, LC_MU, LC_K, LC_A, LC_GM, LC_RM, LC_FZ, LC_KPMODE = range(11)
+NLC = 11
+KP_MSF, KP_SMALL, KP_HERTZ = 0, 1, 2
+
+# layout of y, as engines._contacts
+X, V, S, VC, P, WEL, WVI, Q, WT, PI = 0, 1, 4, 7, 10, 13, 14, 15, 16, 17
+NY = 20
+
+# tuning constants, passed in as cst (their values and reasons: engines._contacts)
+C_SPEED, C_NEWTON, C_VTOL, C_FD, C_FRATIO, C_RITER, C_RTOL, C_SETTLE = range(8)
+NCST = 8
+
+# row status after advance()
+ST_DONE, ST_ONSET, ST_ENDED = 0, 1, 2
+# ended_by codes
+END_FORCE, END_OVERLAP = 0, 1
+
+
+@njit(cache=True, inline="always")
+def _kp(x, R, mode):
+    if mode == KP_MSF:
+        r = x / R
+        if r > 2.0 - 1e-12:
+            r = 2.0 - 1e-12
+        return math.sqrt(2.0 - r)
+    if mode == KP_SMALL:
+        return math.sqrt(2.0)
+    return 1.0
+
+
+@njit(cache=True)
+def forces(code, lc, oc, x, xd, out):
+    """F_n after the separation rule, its elastic part F_n(x, 0) [N], the
+    tangential stiffnesses k_y, k_z [N/m] and dampings b_y, b_z [N s/m]
+    into out[0:6]; x >= 0 [m], xd [m/s]."""
+    fz = lc[LC_FZ] != 0.0
+    if code == CODE_MSF:
+        Ra, Rb = lc[LC_RA], lc[LC_RB]
+        mode = int(lc[LC_KPMODE])
+        kpa = _kp(x, Ra, mode)
+        kpb = kpa if Rb == Ra else _kp(x, Rb, mode)
+        sx = math.sqrt(x)
+        base = (kpa * math.sqrt(Ra) + kpb * math.sqrt(Rb)) * sx
+        el = (2.0 / 3.0) * oc[0] * x
+        F = base * (2.0 * oc[1] * xd + el)
+        P_bx = lc[LC_KHA] * x + 2.0 * kpb * math.sqrt(Rb * x)
+        P_ax = lc[LC_KHB] * x + 2.0 * kpa * math.sqrt(Ra * x)
+        out[1] = base * el
+        out[2] = oc[2] * P_bx
+        out[3] = oc[2] * P_ax
+        out[4] = oc[3] * P_bx
+        out[5] = oc[4] * P_ax
+    else:
+        K = lc[LC_K]
+        if code == CODE_SD:
+            el = oc[0] * x
+            F = el + oc[1] * xd
+        else:
+            el = K * x * math.sqrt(x)
+            if code == CODE_HERTZ:
+                F = el
+            elif code == CODE_KK:
+                F = K * math.sqrt(x) * (x + 1.5 * lc[LC_A] * xd)
+            else:
+                F = el * (1.0 + oc[0] * xd)
+        out[1] = el
+        km = 8.0 * lc[LC_GM] * math.sqrt(lc[LC_RM] * x)
+        out[2] = km
+        out[3] = km
+        out[4] = 0.0
+        out[5] = 0.0
+    out[0] = max(F, 0.0) if fz else F
+
+
+@njit(cache=True)
+def indicator(code, lc, oc, x, xd):
+    """The law's separation indicator B(x, x') (force-zero: B < 0 ends the contact)."""
+    if code == CODE_MSF:
+        return 2.0 * oc[1] * xd + (2.0 / 3.0) * oc[0] * x
+    if code == CODE_HERTZ:
+        return x
+    if code == CODE_KK:
+        return x + 1.5 * lc[LC_A] * xd
+    if code == CODE_HC:
+        return 1.0 + oc[0] * xd
+    return oc[0] * x + oc[1] * xd
+
+
+@njit(cache=True)
+def rhs(code, lc, oc, n, T, W, Wc, a, paper, y, dy, buf):
+    """dy/dt of one row (NY,) as _Batch.rhs; returns (F_n, |F_t|) at y."""
+    x = max(y[X], 0.0)
+    xd = -(y[V] * n[0] + y[V + 1] * n[1] + y[V + 2] * n[2])
+    forces(code, lc, oc, x, xd, buf)
+    Fn, Fc = buf[0], buf[1]
+    vt0 = y[V] + xd * n[0]
+    vt1 = y[V + 1] + xd * n[1]
+    vt2 = y[V + 2] + xd * n[2]
+    if paper:
+        vcn = y[VC] * n[0] + y[VC + 1] * n[1] + y[VC + 2] * n[2]
+        sd0 = y[VC] - vcn * n[0]
+        sd1 = y[VC + 1] - vcn * n[1]
+        sd2_ = y[VC + 2] - vcn * n[2]
+    else:
+        sd0, sd1, sd2_ = vt0, vt1, vt2
+    s_a = T[0, 0] * y[S] + T[0, 1] * y[S + 1] + T[0, 2] * y[S + 2]
+    s_b = T[1, 0] * y[S] + T[1, 1] * y[S + 1] + T[1, 2] * y[S + 2]
+    d_a = T[0, 0] * sd0 + T[0, 1] * sd1 + T[0, 2] * sd2_
+    d_b = T[1, 0] * sd0 + T[1, 1] * sd1 + T[1, 2] * sd2_
+    Fa = -(buf[4] * d_a + buf[2] * s_a)
+    Fb = -(buf[5] * d_b + buf[3] * s_b)
+    mu = lc[LC_MU]
+    if not math.isnan(mu):
+        cap = mu * max(Fn, 0.0)
+        mag = math.hypot(Fa, Fb)
+        if mag > cap:
+            sc = cap / mag if mag > 0 else 1.0
+            Fa *= sc
+            Fb *= sc
+    f0 = Fn * n[0] + Fa * T[0, 0] + Fb * T[1, 0]
+    f1 = Fn * n[1] + Fa * T[0, 1] + Fb * T[1, 1]
+    f2 = Fn * n[2] + Fa * T[0, 2] + Fb * T[1, 2]
+    Ft0, Ft1, Ft2 = f0 - Fn * n[0], f1 - Fn * n[1], f2 - Fn * n[2]
+    dy[X] = xd
+    for i in range(3):
+        dy[V + i] = W[i, 0] * f0 + W[i, 1] * f1 + W[i, 2] * f2 + a[i]
+        dy[VC + i] = Wc[i, 0] * f0 + Wc[i, 1] * f1 + Wc[i, 2] * f2 + a[i]
+        dy[PI + i] = y[P + i]
+    dy[S] = sd0
+    dy[S + 1] = sd1
+    dy[S + 2] = sd2_
+    dy[P] = f0
+    dy[P + 1] = f1
+    dy[P + 2] = f2
+    dy[WEL] = Fc * xd
+    dy[WVI] = (Fn - Fc) * xd
+    dy[Q] = buf[4] * d_a * d_a + buf[5] * d_b * d_b
+    dy[WT] = -(Ft0 * vt0 + Ft1 * vt1 + Ft2 * vt2)
+    return Fn, math.hypot(Fa, Fb)
+
+
+@njit(cache=True)
+def rk4(code, lc, oc, n, T, W, Wc, a, paper, y, h, out, work, buf):
+    """One classical RK4 step of length h from y into out; returns (F_n, |F_t|) at y.
+    work: (5, NY) scratch."""
+    k1, k2, k3, k4, yt = work[0], work[1], work[2], work[3], work[4]
+    Fn, Ft = rhs(code, lc, oc, n, T, W, Wc, a, paper, y, k1, buf)
+    for j in range(NY):
+        yt[j] = y[j] + 0.5 * h * k1[j]
+    rhs(code, lc, oc, n, T, W, Wc, a, paper, yt, k2, buf)
+    for j in range(NY):
+        yt[j] = y[j] + 0.5 * h * k2[j]
+    rhs(code, lc, oc, n, T, W, Wc, a, paper, yt, k3, buf)
+    for j in range(NY):
+        yt[j] = y[j] + h * k3[j]
+    rhs(code, lc, oc, n, T, W, Wc, a, paper, yt, k4, buf)
+    for j in range(NY):
+        out[j] = y[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    return Fn, Ft
+
+
+@njit(cache=True, inline="always")
+def _xdot(y, n):
+    return -(y[V] * n[0] + y[V + 1] * n[1] + y[V + 2] * n[2])
+
+
+@njit(cache=True)
+def _gfun(kind, code, lc, oc, n, yy, xs, Bs, fz):
+    """Root functions: kind 0, x' (maximum compression); kind 1, the
+    separation (x/x_s, and with force-zero min(x/x_s, B/B_s) while separating)."""
+    if kind == 0:
+        return _xdot(yy, n)
+    gx = yy[X] / xs
+    if not fz:
+        return gx
+    xd = _xdot(yy, n)
+    gb = indicator(code, lc, oc, max(yy[X], 0.0), xd) / Bs if xd < 0 else 1.0
+    return min(gx, gb)
+
+
+@njit(cache=True)
+def _root(kind, code, lc, oc, n, T, W, Wc, a, paper, y0, h, lo, hi, g_lo, g_hi, xs, Bs, fz, tmp, work, buf,
+          root_iter, root_tol):
+    """Illinois regula falsi for th in [lo, hi] with g(lo) > 0 >= g(hi), g of the
+    state rk4(y0, th h); as engines._contacts._find_root for one row."""
+    side = 0
+    if hi - lo <= root_tol or g_hi == 0:
+        return hi
+    for _ in range(root_iter):
+        den = g_lo - g_hi
+        th = lo + g_lo * (hi - lo) / den if den > 0 else 0.5 * (lo + hi)
+        if den > 0 and th >= hi:
+            return hi
+        if th <= lo or th >= hi:
+            th = 0.5 * (lo + hi)
+        rk4(code, lc, oc, n, T, W, Wc, a, paper, y0, th * h, tmp, work, buf)
+        gt = _gfun(kind, code, lc, oc, n, tmp, xs, Bs, fz)
+        if gt > 0:
+            if side == 1:
+                g_hi *= 0.5
+            lo, g_lo = th, gt
+            side = 1
+        else:
+            if side == -1:
+                g_lo *= 0.5
+            hi, g_hi = th, gt
+            side = -1
+        if hi - lo <= root_tol or g_hi == 0:
+            break
+    return hi
+
+
+@njit(cache=True)
+def tangent_basis(n, T):
+    """t1, t2 into T (2, 3) with t1 x t2 = n, as engines._contacts._tangent_basis."""
+    if abs(n[0]) < 0.9:
+        e0, e1, e2 = 1.0, 0.0, 0.0
+    else:
+        e0, e1, e2 = 0.0, 1.0, 0.0
+    d = e0 * n[0] + e1 * n[1] + e2 * n[2]
+    t0, t1, t2 = e0 - d * n[0], e1 - d * n[1], e2 - d * n[2]
+    ln = math.sqrt(t0 * t0 + t1 * t1 + t2 * t2)
+    t0 /= ln
+    t1 /= ln
+    t2 /= ln
+    T[0, 0], T[0, 1], T[0, 2] = t0, t1, t2
+    T[1, 0] = n[1] * t2 - n[2] * t1
+    T[1, 1] = n[2] * t0 - n[0] * t2
+    T[1, 2] = n[0] * t1 - n[1] * t0
+
+
+@njit(cache=True)
+def _solve3(A, b, out):
+    """out = A^-1 b for a 3x3 A (Gaussian elimination with partial pivoting);
+    returns False when A is singular."""
+    M = np.empty((3, 4))
+    for i in range(3):
+        for j in range(3):
+            M[i, j] = A[i, j]
+        M[i, 3] = b[i]
+    for c in range(3):
+        piv = c
+        for r in range(c + 1, 3):
+            if abs(M[r, c]) > abs(M[piv, c]):
+                piv = r
+        if M[piv, c] == 0.0:
+            return False
+        if piv != c:
+            for j in range(4):
+                M[c, j], M[piv, j] = M[piv, j], M[c, j]
+        for r in range(c + 1, 3):
+            f = M[r, c] / M[c, c]
+            for j in range(c, 4):
+                M[r, j] -= f * M[c, j]
+    for i in range(2, -1, -1):
+        s = M[i, 3]
+        for j in range(i + 1, 3):
+            s -= M[i, j] * out[j]
+        out[i] = s / M[i, i]
+    return True
+
+
+@njit(cache=True)
+def prelude(cst, pairs, x_eng, n, v, vc, W, Wc, a, paper, t0, dt, settle_rate, settled_path, code, lc, oc,
+            active, x_state, s_state, tau_est, dv_corr, dvc_corr, W_el, W_visc, Q_t, W_t,
+            y, T, t_loc, in_c, settled, status, turned, fl, ints):
+    """Step start for rows 0..k-1 (pair index pairs[r]): y, T, in_c, and the
+    settled path for the resting rows (its record bookkeeping into the per-pair
+    arrays fl (NF, P) and turned (P,), see settled_row). oc (P, NOC): onset
+    constants per pair. ints counts settled rows [0], Newton iterations [1],
+    RK4 substeps [2] and ends [3]."""
+    k = pairs.shape[0]
+    for r in range(k):
+        p = pairs[r]
+        nr = n[r]
+        tangent_basis(nr, T[r])
+        act = active[p]
+        for i in range(3):
+            y[r, V + i] = v[r, i] - dv_corr[p, i]
+            y[r, VC + i] = vc[r, i] - dvc_corr[p, i]
+        x0 = x_state[p] if act else x_eng[r]
+        settle = act and (t0 - fl[F_TONSET, p]) > cst[C_SETTLE] * tau_est[p]
+        if settle:
+            x0 = x0 + settle_rate * (x_eng[r] - x0)
+        y[r, X] = x0
+        # tangential displacement onto the current tangent plane, same length
+        s0, s1, s2 = s_state[p, 0], s_state[p, 1], s_state[p, 2]
+        sn = s0 * nr[0] + s1 * nr[1] + s2 * nr[2]
+        a0, a1, a2 = s0 - sn * nr[0], s1 - sn * nr[1], s2 - sn * nr[2]
+        ls = math.sqrt(s0 * s0 + s1 * s1 + s2 * s2)
+        lt = math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+        if lt > 0:
+            f = ls / lt
+            y[r, S], y[r, S + 1], y[r, S + 2] = a0 * f, a1 * f, a2 * f
+        else:
+            y[r, S] = y[r, S + 1] = y[r, S + 2] = 0.0
+        for i in range(3):
+            y[r, P + i] = 0.0
+            y[r, PI + i] = 0.0
+        y[r, WEL], y[r, WVI], y[r, Q], y[r, WT] = W_el[p], W_visc[p], Q_t[p], W_t[p]
+        t_loc[r] = 0.0
+        in_c[r] = act
+        settled[r] = False
+        status[r] = ST_DONE
+        if settled_path and settle and x0 > 0:
+            if settled_row(cst, p, code, lc, oc[p], nr, T[r], W[r], Wc[r], a[r], paper[r], t0, dt, y[r], turned,
+                           fl, ints):
+                settled[r] = True
+                t_loc[r] = dt
+
+
+# per-pair float arrays of the record bookkeeping, rows of fl (NF, P)
+F_TAU1, F_XTURN, F_XMAX, F_WELC, F_WVIC, F_FMAX, F_XATF, F_FMIN, F_FMAXR, F_TONSET, F_H = range(11)
+NF = 11
+
+
+@njit(cache=True)
+def settled_row(cst, p, code, lc, oc, n, T, W, Wc, a, paper, t0, dt, y, turned, fl, ints):
+    """One backward-Euler step of the law over the whole engine step for a
+    resting row (ContactManager._settled for one row); returns True when it
+    took it (y written), False to leave the row to sub-cycling."""
+    buf = np.empty(6)
+    x0 = y[X]
+    nWn = 0.0
+    for i in range(3):
+        for j in range(3):
+            nWn += n[i] * W[i, j] * n[j]
+    forces(code, lc, oc, x0, 0.0, buf)
+    F_el = buf[0]
+    vx = math.sqrt(max(F_el, 0.0) * x0 * nWn)
+    vn = y[V] * n[0] + y[V + 1] * n[1] + y[V + 2] * n[2]
+    if not (abs(vn) <= cst[C_SPEED] * vx and vx > 0):
+        return False
+    Ww = Wc if paper else W
+    wo = VC if paper else V
+    # B = [n; t1; t2]; M = [n^T W; T Ww] B^T
+    Bm = np.empty((3, 3))
+    for j in range(3):
+        Bm[0, j] = n[j]
+        Bm[1, j] = T[0, j]
+        Bm[2, j] = T[1, j]
+    Sel = np.zeros((3, 3))
+    for j in range(3):
+        for i in range(3):
+            Sel[0, j] += n[i] * W[i, j]
+            Sel[1, j] += T[0, i] * Ww[i, j]
+            Sel[2, j] += T[1, i] * Ww[i, j]
+    M = np.zeros((3, 3))
+    for i in range(3):
+        for j in range(3):
+            for q in range(3):
+                M[i, j] += Sel[i, q] * Bm[j, q]
+    z_free = np.empty(3)
+    z = np.empty(3)
+    z_free[0] = (y[V] + dt * a[0]) * n[0] + (y[V + 1] + dt * a[1]) * n[1] + (y[V + 2] + dt * a[2]) * n[2]
+    z[0] = vn
+    for q in range(2):
+        z_free[q + 1] = ((y[wo] + dt * a[0]) * T[q, 0] + (y[wo + 1] + dt * a[1]) * T[q, 1]
+                         + (y[wo + 2] + dt * a[2]) * T[q, 2])
+        z[q + 1] = y[wo] * T[q, 0] + y[wo + 1] * T[q, 1] + y[wo + 2] * T[q, 2]
+    s2a = T[0, 0] * y[S] + T[0, 1] * y[S + 1] + T[0, 2] * y[S + 2]
+    s2b = T[1, 0] * y[S] + T[1, 1] * y[S + 1] + T[1, 2] * y[S + 2]
+    delta = cst[C_FD] * x0 / dt
+    tol = cst[C_VTOL] * vx
+    mu = lc[LC_MU]
+    phi = np.empty(3)
+    R = np.empty(3)
+    J = np.empty((3, 3))
+    dz = np.empty(3)
+    conv = False
+    xd_e = x_e = Fn = Fa = Fb = sea = seb = 0.0
+    kt0 = kt1 = bt0 = bt1 = 0.0
+    nmax = int(cst[C_NEWTON])
+    for it in range(nmax + 1):
+        xd_e = -z[0]
+        x_e = x0 + dt * xd_e
+        forces(code, lc, oc, x_e + dt * delta, xd_e + delta, buf)
+        Fd = buf[0]
+        forces(code, lc, oc, x_e, xd_e, buf)
+        Fn = buf[0]
+        kt0, kt1, bt0, bt1 = buf[2], buf[3], buf[4], buf[5]
+        sea = s2a + dt * z[1]
+        seb = s2b + dt * z[2]
+        Fa = -(bt0 * z[1] + kt0 * sea)
+        Fb = -(bt1 * z[2] + kt1 * seb)
+        if not math.isnan(mu):
+            cap = mu * max(Fn, 0.0)
+            mag = math.hypot(Fa, Fb)
+            if mag > cap:
+                sc = cap / mag if mag > 0 else 1.0
+                Fa *= sc
+                Fb *= sc
+        phi[0], phi[1], phi[2] = Fn, Fa, Fb
+        rmax = 0.0
+        for i in range(3):
+            R[i] = z[i] - z_free[i] - dt * (M[i, 0] * phi[0] + M[i, 1] * phi[1] + M[i, 2] * phi[2])
+            rmax = max(rmax, abs(R[i]))
+        ints[1] += 1
+        conv = rmax <= tol
+        if conv or it == nmax:
+            break
+        D0 = max((Fd - Fn) / delta, 0.0)
+        D1 = bt0 + kt0 * dt
+        D2 = bt1 + kt1 * dt
+        for i in range(3):
+            J[i, 0] = dt * M[i, 0] * D0
+            J[i, 1] = dt * M[i, 1] * D1
+            J[i, 2] = dt * M[i, 2] * D2
+            J[i, i] += 1.0
+        if not _solve3(J, R, dz):
+            return False
+        for i in range(3):
+            z[i] -= dz[i]
+    if not (conv and x_e > 0 and Fn > 0 and abs(xd_e) <= cst[C_SPEED] * vx):
+        return False
+    # the step's result: the law's force at the end state, held over the step
+    f = np.empty(3)
+    for i in range(3):
+        f[i] = Fn * n[i] + Fa * T[0, i] + Fb * T[1, i]
+    forces(code, lc, oc, x_e, 0.0, buf)
+    Fc = buf[1]
+    dx = x_e - x0
+    v1 = np.empty(3)
+    for i in range(3):
+        v1[i] = y[V + i] + dt * (W[i, 0] * f[0] + W[i, 1] * f[1] + W[i, 2] * f[2] + a[i])
+        y[VC + i] = y[VC + i] + dt * (Wc[i, 0] * f[0] + Wc[i, 1] * f[1] + Wc[i, 2] * f[2] + a[i])
+    v1n = v1[0] * n[0] + v1[1] * n[1] + v1[2] * n[2]
+    wt = 0.0
+    for i in range(3):
+        wt += (f[i] - Fn * n[i]) * (v1[i] - v1n * n[i])
+    y[X] = x_e
+    for i in range(3):
+        y[V + i] = v1[i]
+        y[S + i] = sea * T[0, i] + seb * T[1, i]
+        y[P + i] = f[i] * dt
+        y[PI + i] = 0.5 * dt * dt * f[i]
+    y[WEL] += Fc * dx
+    y[WVI] += (Fn - Fc) * dx
+    y[Q] += (bt0 * z[1] * z[1] + bt1 * z[2] * z[2]) * dt
+    y[WT] -= wt * dt
+    # record bookkeeping, as one substep at the end state
+    if not turned[p] and xd_e <= 0:
+        turned[p] = True
+        fl[F_TAU1, p] = t0 + dt - fl[F_TONSET, p]
+        fl[F_XTURN, p] = x_e
+        fl[F_WELC, p] = y[WEL]
+        fl[F_WVIC, p] = y[WVI]
+    if Fn > fl[F_FMAX, p]:
+        fl[F_XATF, p] = x_e
+        fl[F_FMAX, p] = Fn
+    fl[F_XMAX, p] = max(fl[F_XMAX, p], x_e)
+    if Fn >= cst[C_FRATIO] * fl[F_FMAX, p]:
+        ratio = math.hypot(Fa, Fb) / Fn
+        fl[F_FMIN, p] = min(fl[F_FMIN, p], ratio)
+        fl[F_FMAXR, p] = max(fl[F_FMAXR, p], ratio)
+    ints[0] += 1
+    return True
+
+
+@njit(cache=True)
+def free_flight(n, a, y, rem):
+    """Advance one row (y (NY,)) without contact force to the next onset
+    (x >= 0 with closing speed) or by rem [s]; returns the time to the onset
+    (inf: none within rem). As ContactManager._free_flight for one row."""
+    x0 = y[X]
+    xd0 = _xdot(y, n)
+    c = -0.5 * (a[0] * n[0] + a[1] * n[1] + a[2] * n[2])  # x(t) = x0 + xd0 t + c t^2
+    tc = math.inf
+    stays = False
+    imm = (x0 >= 0 and xd0 > 0) or (x0 > 0 and xd0 == 0)
+    if imm:
+        tc = 0.0
+    else:
+        D = xd0 * xd0 - 4.0 * c * x0
+        sq = math.sqrt(max(D, 0.0))
+        if xd0 > 0:
+            t_up = -2.0 * x0 / (sq + xd0)
+        elif c != 0:
+            t_up = (sq - xd0) / (2.0 * c)
+        else:
+            t_up = math.nan
+        up = x0 < 0 and D >= 0 and (xd0 > 0 or c > 0)
+        if up and t_up >= 0:
+            tc = t_up
+        back = x0 >= 0 and xd0 <= 0 and c > 0
+        if back:
+            stays = x0 - xd0 * xd0 / (4.0 * c) >= 0
+            tc = -xd0 / (2.0 * c) if stays else t_up
+    if not tc <= rem:
+        tc = math.inf
+    tadv = tc if tc < math.inf else rem
+    y[X] = x0 + xd0 * tadv + c * tadv * tadv
+    for i in range(3):
+        y[V + i] += a[i] * tadv
+        y[VC + i] += a[i] * tadv
+        y[PI + i] += y[P + i] * tadv
+    if stays and tc < math.inf:  # exactly at the turn: closing speed 0, not slightly negative
+        vn = y[V] * n[0] + y[V + 1] * n[1] + y[V + 2] * n[2]
+        for i in range(3):
+            y[V + i] -= vn * n[i]
+    return tc
+
+
+@njit(cache=True)
+def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt, h_p, turned, fl, ints):
+    """RK4 sub-cycling of one contact row from t_loc to the end of the step
+    or to the contact's end (ContactManager._integrate for one row). Returns
+    (ended, ended_by code, new t_loc)."""
+    buf = np.empty(6)
+    work = np.empty((5, NY))
+    Y = y.copy()
+    Y1 = np.empty(NY)
+    Yt = np.empty(NY)
+    tmp = np.empty(NY)
+    fz = lc[LC_FZ] != 0.0
+    riter, rtol = int(cst[C_RITER]), cst[C_RTOL]
+    rem = dt - t_loc
+    nsub = max(1, int(math.ceil(rem / h_p - 1e-9)))
+    hs = rem / nsub
+    for i in range(nsub):
+        Fn0, Ft0 = rk4(code, lc, oc, n, T, W, Wc, a, paper, Y, hs, Y1, work, buf)
+        ints[2] += 1
+        # peak force and friction ratio at the substep start
+        if Fn0 > fl[F_FMAX, p]:
+            fl[F_XATF, p] = Y[X]
+            fl[F_FMAX, p] = Fn0
+        if Fn0 >= cst[C_FRATIO] * fl[F_FMAX, p] and Fn0 > 0:
+            ratio = Ft0 / Fn0
+            fl[F_FMIN, p] = min(fl[F_FMIN, p], ratio)
+            fl[F_FMAXR, p] = max(fl[F_FMAXR, p], ratio)
+        xd0, xd1 = _xdot(Y, n), _xdot(Y1, n)
+        lo = 0.0
+        # first maximum compression inside this substep
+        if not turned[p] and xd0 > 0 and xd1 <= 0:
+            th = _root(0, code, lc, oc, n, T, W, Wc, a, paper, Y, hs, 0.0, 1.0, xd0, xd1, 1.0, 1.0, fz, tmp,
+                       work, buf, riter, rtol)
+            rk4(code, lc, oc, n, T, W, Wc, a, paper, Y, th * hs, Yt, work, buf)
+            turned[p] = True
+            fl[F_TAU1, p] = t0 + t_loc + th * hs - fl[F_TONSET, p]
+            fl[F_XTURN, p] = Yt[X]
+            fl[F_XMAX, p] = max(fl[F_XMAX, p], Yt[X])
+            fl[F_WELC, p] = Yt[WEL]
+            fl[F_WVIC, p] = Yt[WVI]
+            lo = th
+        fl[F_XMAX, p] = max(fl[F_XMAX, p], Y1[X])
+        # separation
+        end = xd1 < 0 and Y1[X] < 0
+        if fz and xd1 < 0 and indicator(code, lc, oc, max(Y1[X], 0.0), xd1) < 0:
+            end = True
+        if end:
+            rk4(code, lc, oc, n, T, W, Wc, a, paper, Y, lo * hs, Yt, work, buf)  # Ylo
+            xs = Yt[X] if Yt[X] > 0 else 1.0
+            Bs = abs(indicator(code, lc, oc, max(Yt[X], 0.0), _xdot(Yt, n)))
+            if not Bs > 0:
+                Bs = 1.0
+            g_lo = _gfun(1, code, lc, oc, n, Yt, xs, Bs, fz)
+            g_hi = _gfun(1, code, lc, oc, n, Y1, xs, Bs, fz)
+            if not g_lo > 0:  # a substep that starts already past the event: end at its start
+                g_lo = 1e-300
+            th = _root(1, code, lc, oc, n, T, W, Wc, a, paper, Y, hs, lo, 1.0, g_lo, g_hi, xs, Bs, fz, tmp,
+                       work, buf, riter, rtol)
+            rk4(code, lc, oc, n, T, W, Wc, a, paper, Y, th * hs, Yt, work, buf)  # Ye
+            by_force = False
+            if fz:
+                xde = _xdot(Yt, n)
+                gb = indicator(code, lc, oc, max(Yt[X], 0.0), xde) / Bs if xde < 0 else math.inf
+                by_force = gb < Yt[X] / xs
+            y[:] = Yt
+            ints[3] += 1
+            return True, END_FORCE if by_force else END_OVERLAP, t_loc + th * hs
+        for j in range(NY):
+            Y[j] = Y1[j]
+        t_loc += hs
+    y[:] = Y
+    return False, 0, dt
+
+
+@njit(cache=True)
+def advance(cst, pairs, n, T, W, Wc, a, paper, code, lc, oc, t0, dt, h, y, t_loc, in_c, status, ended_by,
+            turned, fl, ints):
+    """Move every row through the rest of its step (module docstring, 2):
+    status[r] = ST_ONSET (free flight reached an onset at t_loc[r]: the
+    caller begins the contact, sets in_c[r], and calls again), ST_ENDED (the
+    contact ended at t_loc[r], by ended_by[r]: the caller writes the record,
+    clears in_c[r], and calls again) or ST_DONE (the step is over). Returns
+    the number of rows stopped for the caller."""
+    k = pairs.shape[0]
+    stopped = 0
+    for r in range(k):
+        status[r] = ST_DONE
+        if t_loc[r] >= dt:
+            continue
+        p = pairs[r]
+        if not in_c[r]:
+            tc = free_flight(n[r], a[r], y[r], dt - t_loc[r])
+            if tc < math.inf:
+                t_loc[r] += tc
+                status[r] = ST_ONSET
+                stopped += 1
+            else:
+                t_loc[r] = dt
+            continue
+        ended, by, tl = integrate_row(cst, code, lc, oc[p], n[r], T[r], W[r], Wc[r], a[r], paper[r], p, y[r],
+                                      t_loc[r], t0, dt, h[p], turned, fl, ints)
+        t_loc[r] = tl
+        if ended:
+            status[r] = ST_ENDED
+            ended_by[r] = by
+            stopped += 1
+    return stopped
+
+
+@njit(cache=True)
+def finale(pairs, n, W, Wc, settled, in_c, y, dt, timing, lc, active, x_state, xdot_state, s_state, vc_state,
+           W_el, W_visc, Q_t, W_t, phase, outside, settled_state, Jst, dv_corr, dvc_corr, impulse):
+    """Write back the rows' state (ContactManager._step_group's end): the
+    timing correction J = int (dt/2 - t) f dt / dt (0 for settled rows),
+    the step's impulse P + J - J_previous into impulse (k, 3) [N s]."""
+    rmin = min(lc[LC_RA], lc[LC_RB])
+    msf_kp = int(lc[LC_KPMODE]) == KP_MSF
+    for r in range(pairs.shape[0]):
+        p = pairs[r]
+        yr = y[r]
+        active[p] = in_c[r]
+        x_state[p] = yr[X]
+        xd = _xdot(yr, n[r])
+        xdot_state[p] = xd
+        for i in range(3):
+            s_state[p, i] = yr[S + i]
+            vc_state[p, i] = yr[VC + i]
+        W_el[p], W_visc[p], Q_t[p], W_t[p] = yr[WEL], yr[WVI], yr[Q], yr[WT]
+        phase[p] = 1 if xd < 0 else 0
+        if msf_kp and in_c[r] and max(yr[X], 0.0) / rmin >= 2.0:
+            outside[p] = True
+        settled_state[p] = settled[r]
+        J = np.zeros(3)
+        if timing and not settled[r]:
+            for i in range(3):
+                J[i] = yr[PI + i] / dt - 0.5 * yr[P + i]
+        for i in range(3):
+            impulse[r, i] = yr[P + i] + J[i] - Jst[p, i]
+            Jst[p, i] = J[i]
+        for i in range(3):
+            dv_corr[p, i] = W[r, i, 0] * J[0] + W[r, i, 1] * J[1] + W[r, i, 2] * J[2]
+            dvc_corr[p, i] = Wc[r, i, 0] * J[0] + Wc[r, i, 1] * J[1] + Wc[r, i, 2] * J[2]
+
+
+@njit(cache=True)
+def check(pair, P, x, n, point, v, vc, W, Wc, a, active, Jst):
+    """Validate the kinematics of one step (ContactManager.step's contract):
+    returns (code, row): 0 ok; 1 a pair index outside [0, P); 2 a pair listed
+    twice; 3 a non-finite value (row); 4 a normal that is not a unit vector;
+    5 a required pair (in contact, or with a timing correction) not listed."""
+    k = pair.shape[0]
+    seen = np.zeros(P, np.bool_)
+    for r in range(k):
+        q = pair[r]
+        if q < 0 or q >= P:
+            return 1, r
+        if seen[q]:
+            return 2, r
+        seen[q] = True
+        ok = math.isfinite(x[r])
+        for i in range(3):
+            ok = ok and math.isfinite(n[r, i]) and math.isfinite(point[r, i]) and math.isfinite(v[r, i])
+            ok = ok and math.isfinite(vc[r, i]) and math.isfinite(a[r, i])
+            for j in range(3):
+                ok = ok and math.isfinite(W[r, i, j]) and math.isfinite(Wc[r, i, j])
+        if not ok:
+            return 3, r
+        nn = math.sqrt(n[r, 0] ** 2 + n[r, 1] ** 2 + n[r, 2] ** 2)
+        if abs(nn - 1.0) > 1e-6:
+            return 4, r
+    for q in range(P):
+        if (active[q] or Jst[q, 0] != 0.0 or Jst[q, 1] != 0.0 or Jst[q, 2] != 0.0) and not seen[q]:
+            return 5, q
+    return 0, -1
