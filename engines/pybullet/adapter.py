@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from itertools import chain, repeat
 
 import numpy as np
 import pybullet as pb
@@ -150,14 +151,25 @@ class PybulletAdapter(EngineAdapter):
     pairs: PairSpec with ``body1``/``body2`` = (body unique id, link index),
         link -1 the base; each link must carry exactly one collision shape,
         a sphere, plane or box (a box is met on its faces only).
+    compiled: do the per-step array work of the fast pairs (detection,
+        velocities, a_ext, W, the cross-pair correction, the forces summed
+        per body) in the numba kernels of :mod:`engines.pybullet._kernels`
+        (default); False: in numpy (the reference the kernels are tested
+        against, tests/test_pybullet_kernels.py).
     """
 
     name = "pybullet"
 
-    def __init__(self, client: int, pairs: list[PairSpec]):
+    def __init__(self, client: int, pairs: list[PairSpec], compiled: bool = True):
         if not isinstance(client, int) or not pb.isConnected(client):
             raise ValueError(f"client = {client!r} is not a connected pybullet physics client")
+        if not isinstance(compiled, bool):
+            raise ValueError(f"compiled = {compiled!r} must be True or False")
         self.client = client
+        self.compiled = compiled
+        if compiled:
+            from engines.pybullet import _kernels  # numba: imported only when used
+            self._k = _kernels
         self._fixed_cache: dict[int, bool] = {}  # body unique id -> base has mass 0 (read once)
         self._dt = float(pb.getPhysicsEngineParameters(physicsClientId=client)["fixedTimeStep"])
         if not self._dt > 0:
@@ -272,25 +284,33 @@ class PybulletAdapter(EngineAdapter):
                                   else np.array([self._shapes[i][1].size[0], 0.0, 0.0]) for i in f],
                                  float).reshape(-1, 3)
         self._f_rot1 = np.array([self._shapes[i][0].rot for i in f], float).reshape(-1, 3, 3)
+        self._f_j1 = np.ascontiguousarray(self._slot[f, 0]).astype(np.int64)
+        self._f_j2 = np.ascontiguousarray(self._slot[f, 1]).astype(np.int64)
+        self._f64 = f.astype(np.int64)
+        self._slot64 = np.ascontiguousarray(self._slot, dtype=np.int64)
+        self._b_uid = np.array([b[0] for b in body_list], int).reshape(B)
 
     def _read_bodies(self) -> _Bodies:
         """Every body of the pairs, one read each (module docstring, step 1)."""
         c = self.client
-        pose, vel = pb.getBasePositionAndOrientation, pb.getBaseVelocity
-        # bases: tuples joined in Python and converted once (a numpy row per call costs more than the call)
-        base = np.array([p + o + v + w for (p, o), (v, w) in
-                         ((pose(u, physicsClientId=c), vel(u, physicsClientId=c)) for u in self._base_uids)],
-                        float).reshape(-1, 13)
+        uids = self._base_uids
+        nb = len(uids)
+        # bases: one call per body and quantity, mapped from C with the client id positional (the
+        # keyword costs ~0.1 us a call), the tuples flattened by itertools and converted once
+        po = np.fromiter(chain.from_iterable(chain.from_iterable(
+            map(pb.getBasePositionAndOrientation, uids, repeat(c)))), float, 7 * nb).reshape(nb, 7)
+        vw = np.fromiter(chain.from_iterable(chain.from_iterable(
+            map(pb.getBaseVelocity, uids, repeat(c)))), float, 6 * nb).reshape(nb, 6)
         B = len(self._body_list)
         com, q, v, w = np.empty((B, 3)), np.empty((B, 4)), np.empty((B, 3)), np.empty((B, 3))
         jb = self._base_slots
-        com[jb], q[jb], v[jb], w[jb] = base[:, 0:3], base[:, 3:7], base[:, 7:10], base[:, 10:13]
+        com[jb], q[jb], v[jb], w[jb] = po[:, 0:3], po[:, 3:7], vw[:, 0:3], vw[:, 3:6]
         frame = com.copy()
         for j in self._link_slots:
             uid, link = self._body_list[j]
             st = pb.getLinkState(uid, link, computeLinkVelocity=1, computeForwardKinematics=1, physicsClientId=c)
             com[j], q[j], frame[j], v[j], w[j] = st[0], st[1], st[4], st[6], st[7]
-        return _Bodies(com, _mats(q), v, w, frame)
+        return _Bodies(com, self._k.rotations(q) if self.compiled else _mats(q), v, w, frame)
 
     def _articulated(self, b):
         return b[1] >= 0
@@ -526,17 +546,33 @@ class PybulletAdapter(EngineAdapter):
         rx = _skew(r)
         return self._b_inv_m[j][:, None, None] * np.eye(3) - rx @ Iinv @ rx
 
+    def _fast_rows_compiled(self, bodies: _Bodies, grav, required) -> dict:
+        """:meth:`_fast_rows` in :func:`engines.pybullet._kernels.fast_rows`."""
+        k_all = self._fast.size
+        out = dict(pair=np.empty(k_all, np.int64), x=np.empty(k_all), normal=np.empty((k_all, 3)),
+                   point=np.empty((k_all, 3)), v_rel=np.empty((k_all, 3)), v_com_rel=np.empty((k_all, 3)),
+                   W=np.empty((k_all, 3, 3)), W_com=np.empty((k_all, 3, 3)), a_ext=np.empty((k_all, 3)))
+        k, status, q = self._k.fast_rows(
+            self._f64, self._f_j1, self._f_j2, self._f_s1, self._f_r1, self._f_plane, self._f_s2, self._f_size2,
+            bodies.com, bodies.rot, bodies.v, bodies.w, self._b_free, self._b_inv_m, self._b_inv_I,
+            self._last_v_rel, self._last_dv, self._have_last, self._last_a_ext, self._pt, required,
+            np.asarray(grav, float), self._dt, CANDIDATE_FACTOR, *out.values())
+        if status == self._k.COINCIDENT:
+            raise ValueError(f"pairs[{int(self._fast[q])}]: sphere-sphere: the centres coincide, the contact "
+                             "normal is undefined")
+        return {key: val[:k] for key, val in out.items()}
+
     # -- one step -------------------------------------------------------------
     def _step_once(self):
         dt = self._dt
-        c = self.client
         required = np.zeros(len(self.pairs), bool)
         required[self.manager.required_pairs] = True  # in contact, or a timing correction to remove
         bodies = self._read_bodies()
         grav = self._gravity()
         blocks = []
         if self._fast.size:
-            blocks.append(self._fast_rows(bodies, grav, required))
+            fast_rows = self._fast_rows_compiled if self.compiled else self._fast_rows
+            blocks.append(fast_rows(bodies, grav, required))
         cand = []
         for i, x, nrm, point, v_rel, v_com_rel, a_ext, poses in self._kinematics(bodies, grav, required):
             closing = float(closing_distance(-(v_rel @ nrm), -(a_ext @ nrm), dt, CANDIDATE_FACTOR))
@@ -552,13 +588,17 @@ class PybulletAdapter(EngineAdapter):
         if cand or not blocks:
             blocks.append({key: np.array([r[q] for r in cand], float).reshape((-1,) + shp)
                            for q, (key, shp) in enumerate(shapes.items())})
-        cat = blocks[0] if len(blocks) == 1 else {key: np.concatenate([b[key] for b in blocks]) for key in shapes}
-        order = np.argsort(cat["pair"], kind="stable")
+        if len(blocks) == 1:
+            cat = blocks[0]  # one block's rows are in pair order already
+        else:
+            cat = {key: np.concatenate([b[key] for b in blocks]) for key in shapes}
+            order = np.argsort(cat["pair"], kind="stable")
+            cat = {key: val[order] for key, val in cat.items()}
         # the manager steps every engine step, also with no candidate: it
         # completes finished records once their timing correction is gone
-        kin = ContactKinematics(t=self.time, **{key: np.reshape(val[order], (-1,) + shapes[key])
+        kin = ContactKinematics(t=self.time, **{key: np.reshape(val, (-1,) + shapes[key])
                                                 for key, val in cat.items()})
-        kin.pair = kin.pair.astype(int)
+        kin.pair = np.asarray(kin.pair, int)
         out = self.manager.step(kin)
         pair = np.asarray(out.pair, int)
         force = np.asarray(out.force, float)
@@ -567,18 +607,59 @@ class PybulletAdapter(EngineAdapter):
             ph, F = pair[hit], force[hit]
             self._cross_dv(bodies, ph, F * dt, kin.W[hit])
             self.impulse[ph] += F * dt
-            slots = self._slot[ph]
-            fixed1, fixed2 = self._b_fixed[slots[:, 0]], self._b_fixed[slots[:, 1]]
-            Fl, Pl = F.tolist(), np.asarray(out.point, float)[hit].tolist()
-            for q, i in enumerate(ph.tolist()):
-                (u1, l1), (u2, l2) = self._bodies[i]
-                if not fixed1[q]:
-                    pb.applyExternalForce(u1, l1, Fl[q], Pl[q], pb.WORLD_FRAME, physicsClientId=c)
-                if not fixed2[q]:
-                    pb.applyExternalForce(u2, l2, [-Fl[q][0], -Fl[q][1], -Fl[q][2]], Pl[q], pb.WORLD_FRAME,
-                                          physicsClientId=c)
-        pb.stepSimulation(physicsClientId=c)
+            self._apply(bodies, ph, F, np.asarray(out.point, float)[hit])
+        pb.stepSimulation(self.client)
         self._steps += 1
+
+    def _apply(self, bodies: _Bodies, ph, F, point) -> None:
+        """Apply the forces F (k, 3) at ``point`` (k, 3) on body 1 of the pairs ph
+        (k,), the opposite on body 2, fixed bodies taking none (module
+        docstring, step 3), with one call per free body: a body with one
+        force takes it at its point; a body with several, their sum at its
+        centre of mass and their torque about it (``applyExternalTorque``),
+        which is what pybullet makes of forces at points (the base's torque
+        is (point - centre of mass) x F). A link of a multibody takes each of
+        its forces at its point."""
+        c = self.client
+        if self.compiled:
+            count, force, torque, at = self._k.body_loads(ph.astype(np.int64), F, point, self._slot64, bodies.com,
+                                                          self._b_free)
+        else:
+            count, force, torque, at = self._body_loads(bodies, ph, F, point)
+        push, world = pb.applyExternalForce, pb.WORLD_FRAME
+        one = np.flatnonzero(count == 1)
+        for u, f, p in zip(self._b_uid[one].tolist(), force[one].tolist(), at[one].tolist()):
+            push(u, -1, f, p, world, c)  # the client id positional: a keyword costs ~0.1 us a call
+        many = np.flatnonzero(count > 1)
+        for u, f, p, t in zip(self._b_uid[many].tolist(), force[many].tolist(), bodies.com[many].tolist(),
+                              torque[many].tolist()):
+            push(u, -1, f, p, world, c)
+            pb.applyExternalTorque(u, -1, t, world, c)
+        if self._link_slots:
+            on_link = self._b_link[self._slot[ph]]
+            for q in np.flatnonzero(on_link[:, 0] | on_link[:, 1]).tolist():
+                (u1, l1), (u2, l2) = self._bodies[ph[q]]
+                f, p = F[q].tolist(), point[q].tolist()
+                if on_link[q, 0]:
+                    push(u1, l1, f, p, world, c)
+                if on_link[q, 1]:
+                    push(u2, l2, [-f[0], -f[1], -f[2]], p, world, c)
+
+    def _body_loads(self, bodies: _Bodies, ph, F, point):
+        """numpy :func:`engines.pybullet._kernels.body_loads`: per free body the
+        number of forces, their sum, their torque about the centre of mass and
+        the point of the last one."""
+        B = len(self._body_list)
+        count, force, torque, at = np.zeros(B, int), np.zeros((B, 3)), np.zeros((B, 3)), np.zeros((B, 3))
+        for side, sign in ((0, 1.0), (1, -1.0)):
+            j = self._slot[ph, side]
+            on = self._b_free[j]
+            j, f, p = j[on], sign * F[on], point[on]
+            np.add.at(count, j, 1)
+            np.add.at(force, j, f)
+            np.add.at(torque, j, _cross(p - bodies.com[j], f))
+            at[j] = p
+        return count, force, torque, at
 
     def _cross_dv(self, bodies: _Bodies, ph, P, W_own) -> None:
         """Keep, for the next step's a_ext, the change of every pair's v_rel
@@ -591,7 +672,15 @@ class PybulletAdapter(EngineAdapter):
         W_own_keep = W_own[keep]
         P_keep, ph_keep = P[keep], ph[keep]
         ph, P = ph[~keep], P[~keep]
-        if ph.size:
+        if ph.size and self.compiled:
+            moved = np.zeros(len(self._body_list), bool)
+            self._k.cross_dv_free(ph.astype(np.int64), np.ascontiguousarray(P), self._slot64, self._pt, bodies.com,
+                                  bodies.rot, self._b_inv_m, self._b_inv_I, self._b_free, self._b_link,
+                                  self._last_dv, moved)
+            links = moved & self._b_link
+            if np.any(links):
+                self._cross_dv_links(bodies, ph, P, links)
+        elif ph.size:
             B = len(self._body_list)
             s1, s2 = self._slot[ph, 0], self._slot[ph, 1]
             pt = self._pt[ph]
@@ -616,8 +705,12 @@ class PybulletAdapter(EngineAdapter):
             links = moved & self._b_link
             if np.any(links):
                 self._cross_dv_links(bodies, ph, P, links)
-        for q, i in enumerate(ph_keep.tolist()):
-            self._last_dv[i] += W_own_keep[q] @ P_keep[q]
+        if self.compiled:
+            self._k.add_own_dv(ph_keep.astype(np.int64), np.ascontiguousarray(W_own_keep),
+                               np.ascontiguousarray(P_keep), self._last_dv)
+        else:
+            for q, i in enumerate(ph_keep.tolist()):
+                self._last_dv[i] += W_own_keep[q] @ P_keep[q]
 
     def _cross_dv_links(self, bodies: _Bodies, ph, P, links) -> None:
         """The links' share of :meth:`_cross_dv`: for each multibody hit,
