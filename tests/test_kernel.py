@@ -1,0 +1,233 @@
+"""The compiled contact core (engines._kernel) against the manager's numpy path.
+
+Both paths run the same scenes in the tiny engine of test_engine_core; the
+records, the forces and the per-pair state must agree. The numpy path is
+the implementation the engines' tests were built on; the kernel is what
+the adapters run by default.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from test_engine_core import (CORE_RTOL, LAWS_PTFE, LAWS_RUBBER, PTFE, R_PTFE, RIGID, FakeEngine, _static_overlap,
+                              balls_on_plate)
+
+from engines._contacts import ContactManager, kernel_law
+from engines.base import PairSpec
+from msf_contact import ContactPair, Curvature, make_law, preset
+from msf_contact.laws import MSFLaw
+
+#: One contact row: both paths do the same arithmetic in another order
+#: (einsum against written-out sums) and find the same roots to ROOT_TOL
+#: (1e-13 of a substep): agreement to round-off, amplified by the
+#: root finding's conditioning near a grazing end; 1e-9 relative.
+SAME_RTOL = 1e-9
+#: Several rows at once: the numpy path steps every row of a batch with the
+#: finest row's internal step and iterates Newton until all rows converge,
+#: the kernel steps each row with its own. Each path is within CORE_RTOL of
+#: the exact contact (test_engine_core), so they agree within twice that;
+#: repeated bounces under gravity carry the difference from one bounce to
+#: the next (measured: 1e-4 on the fifth bounce's COR).
+BATCH_RTOL = 2 * CORE_RTOL
+RECORD_KEYS = ("cor_n", "cor_t", "cor_t_contact", "tau", "tau1", "x_max", "F_max", "Pc_max", "W_el_comp",
+               "W_visc_comp", "W_diss_n", "W_diss_t", "Q_t", "spin_in", "spin_out", "f_min", "f_max")
+
+
+def twin(make, compiled):
+    """The engine of make() with its manager rebuilt as compiled or numpy."""
+    eng = make()
+    old = eng.mgr
+    eng.mgr = ContactManager(old.pairs, old.dt, "fake", compiled=compiled)
+    eng.mgr.set_body_probe(lambda q: {"omega1": eng.w[eng.idx[q, 0]].copy()})
+    return eng
+
+
+def run_both(make, steps):
+    """(compiled engine, numpy engine, per-step forces of each) after `steps` steps."""
+    out = []
+    for compiled in (True, False):
+        eng = twin(make, compiled)
+        forces = []
+        for _ in range(steps):
+            kin = eng.kinematics()
+            res = eng.mgr.step(kin)
+            forces.append((res.pair.copy(), res.force.copy()))
+            _advance(eng, res)
+        out.append((eng, forces))
+    return out
+
+
+def _advance(eng, out):
+    """FakeEngine.step's integration of the forces the manager returned."""
+    acc = np.repeat(eng.g[None], len(eng.m), 0)
+    alpha = np.zeros_like(eng.w)
+    for q, F in zip(out.pair, out.force):
+        i, j = eng.idx[q]
+        acc[i] += F / eng.m[i]
+        alpha[i] += np.cross(eng._pt1[q] - eng.p[i], F) / eng.I[i]
+        if j >= 0:
+            acc[j] -= F / eng.m[j]
+            alpha[j] -= np.cross(eng._pt2[q] - eng.p[j], F) / eng.I[j]
+    eng.v += eng.dt * acc
+    eng.w += eng.dt * alpha
+    eng.p += eng.dt * eng.v
+    eng.t += eng.dt
+
+
+def close(a, b, rtol, scale):
+    if a is None or b is None:
+        return a is None and b is None
+    return abs(a - b) <= rtol * max(abs(b), scale)
+
+
+def compare(make, steps, rtol, min_records=1):
+    (ec, fc), (en, fn) = run_both(make, steps)
+    rc, rn = ec.mgr.pop_records(), en.mgr.pop_records()
+    assert len(rc) == len(rn) >= min_records
+    for a, b in zip(rc, rn):
+        assert a.ended_by == b.ended_by
+        assert a.inputs["pair"] == b.inputs["pair"]
+        for key in RECORD_KEYS:
+            va, vb = getattr(a, key), getattr(b, key)
+            # each quantity against its natural scale (it may be ~0, e.g. a normal impact's cor_t)
+            scale = 0.0
+            if key.startswith(("W_", "Q_")):  # works: against the impact's kinetic energy (differences)
+                scale = 0.5 * b.inputs["mass_effective"] * (b.inputs["v_n_in"] ** 2 + b.inputs["v_t_in"] ** 2)
+            elif key in ("cor_n", "cor_t", "cor_t_contact", "f_min", "f_max"):  # ratios of order 1
+                scale = 1.0
+            elif key.startswith("spin"):  # against the spin a rolling ball at the impact speed would have
+                scale = (b.inputs["v_n_in"] + b.inputs["v_t_in"]) / 0.001
+            assert close(va, vb, rtol, scale), (key, va, vb)
+    # final body states (the forces applied, step after step)
+    vscale = float(np.max(np.abs(en.v))) + 1e-30
+    assert np.allclose(ec.v, en.v, rtol=rtol, atol=rtol * vscale)
+    assert np.allclose(ec.p, en.p, rtol=rtol, atol=rtol * float(np.max(np.abs(en.p))))
+    assert np.array_equal(ec.mgr.active, en.mgr.active)
+    return rc, ec, en
+
+
+# -- one row: the same arithmetic --------------------------------------------------------
+@pytest.mark.parametrize("name", list(LAWS_RUBBER))
+def test_one_ball_every_law_matches_numpy_path(name):
+    law = LAWS_RUBBER[name]
+    dt = 1e-3
+    # gap 0.37 of a step's travel: onset inside a step, contact over several steps
+    compare(lambda: balls_on_plate(law, 0.02, 2.0, dt, [0.37 * 2.0 * dt]), 12, SAME_RTOL)
+
+
+@pytest.mark.parametrize("name", list(LAWS_PTFE))
+def test_one_short_contact_inside_a_step_matches_numpy_path(name):
+    # PTFE at 1 m/s lasts ~0.4 ms: the whole contact inside one 2 ms step (onset, turn and end located)
+    law = LAWS_PTFE[name]
+    compare(lambda: balls_on_plate(law, R_PTFE, 1.0, 2e-3, [0.61 * 1.0 * 2e-3]), 4, SAME_RTOL)
+
+
+def test_oblique_spin_coulomb_cap_and_paper_mode_match_numpy_path():
+    pair = ContactPair(PTFE, RIGID)
+    law = make_law("msf", pair, Curvature.sphere_on_plane(R_PTFE), omega=8000.0, mu=0.2)
+    for mode in ("contact-point", "paper"):
+        rc, _, _ = compare(lambda: balls_on_plate(law, R_PTFE, 1.0, 1e-4, [1.3e-5], angle_deg=30.0, spin=40.0,
+                                                  tangential=mode), 80, SAME_RTOL)
+        assert rc[0].cor_t is not None and rc[0].f_max > 0  # the tangential force acted
+
+
+def test_overlap_zero_and_small_kp_match_numpy_path():
+    pair = ContactPair(PTFE, RIGID)
+    c = Curvature.sphere_on_plane(R_PTFE)
+    for law in (make_law("msf", pair, c, omega=8000.0, separation="overlap-zero"),
+                make_law("msf", pair, c, omega=8000.0, kp_mode="msf-small"),
+                make_law("spring-dashpot", pair, c, separation="overlap-zero")):
+        rc, _, _ = compare(lambda: balls_on_plate(law, R_PTFE, 1.0, 1e-3, [3e-4]), 6, SAME_RTOL)
+        assert rc[0].ended_by == ("overlap-zero" if law.separation == "overlap-zero" else rc[0].ended_by)
+
+
+def test_self_consistent_omega_matches_numpy_path():
+    law = make_law("msf", ContactPair(PTFE, RIGID), Curvature.sphere_on_plane(R_PTFE))
+    compare(lambda: balls_on_plate(law, R_PTFE, 1.0, 1e-3, [4e-4]), 6, SAME_RTOL)
+
+
+def test_two_free_spheres_match_numpy_path():
+    law = make_law("msf", ContactPair(PTFE, PTFE), Curvature.two_spheres(R_PTFE, R_PTFE), omega=8000.0)
+    m = 4.0 / 3.0 * math.pi * R_PTFE**3 * PTFE.density
+
+    def make():
+        pos = [[0.0, 0.0, 0.0], [2 * R_PTFE + 2.3e-4, 0.003, 0.0]]
+        return FakeEngine([PairSpec("a", "b", law)], [(0, 1)], [R_PTFE] * 2, [m, m], pos,
+                          [[1.0, 0.0, 0.0], [-0.5, 0.0, 0.0]], [[0, 0, 3.0], [0, 0, 0]], 1e-3)
+
+    compare(make, 5, SAME_RTOL)
+
+
+# -- many rows: bounces, micro-bounces and the settled path ----------------------------------
+def rows_are_independent(law, R, dt, gaps, steps, gravity):
+    """The kernel with one row per ball equals the numpy path run for each ball
+    alone (the numpy path steps the rows of a batch together, so only a
+    single-row numpy run is the same computation). Returns the kernel engine."""
+    multi = twin(lambda: balls_on_plate(law, R, 0.0, dt, gaps, gravity=gravity), True)
+    for _ in range(steps):
+        multi.step()
+    recs = multi.mgr.pop_records()
+    for k, gap in enumerate(gaps):
+        one = twin(lambda: balls_on_plate(law, R, 0.0, dt, [gap], gravity=gravity), False)
+        for _ in range(steps):
+            one.step()
+        mine = [r for r in recs if r.inputs["pair"] == k]
+        theirs = one.mgr.pop_records()
+        assert len(mine) == len(theirs)
+        for a, b in zip(mine, theirs):
+            for key in ("cor_n", "tau", "x_max", "F_max", "W_diss_n"):
+                assert close(getattr(a, key), getattr(b, key), SAME_RTOL, 0.0), (k, key)
+        assert np.allclose(multi.v[k], one.v[0], rtol=SAME_RTOL, atol=1e-15)
+        assert np.allclose(multi.p[k, 2], one.p[0, 2], rtol=SAME_RTOL, atol=0.0)
+        assert multi.mgr.settled[k] == one.mgr.settled[0]
+    return multi, recs
+
+
+def test_dropped_balls_bounce_and_settle_row_by_row():
+    # natural rubber balls dropped from different gaps at dt = 1 ms under gravity: impacts,
+    # bounces down to micro-bounces, then resting contacts on the settled path; 600 steps
+    multi, recs = rows_are_independent(LAWS_RUBBER["msf"], 0.02, 1e-3, [0.0, 1e-4, 7e-4, 3e-3, 1.1e-2], 600, 9.81)
+    assert len(recs) > 20
+    assert np.all(multi.mgr.settled[:3])  # the three lowest drops ended on the settled path
+
+
+def test_steel_on_steel_rests_on_the_settled_path_row_by_row():
+    # omega dt ~ 30 (test_engine_core): only the settled path keeps this stable
+    steel, R = preset("steel"), 0.01
+    law = make_law("msf", ContactPair(steel, steel), Curvature.sphere_on_plane(R))
+    m = 4.0 / 3.0 * math.pi * R**3 * steel.density
+    x_s = _static_overlap(law, m, law.onset([1.0], [m]))
+    multi, _ = rows_are_independent(law, R, 2e-3, [-0.99 * x_s, 0.0], 150, 9.81)
+    assert np.all(multi.mgr.settled)
+
+
+def test_batch_of_first_impacts_matches_numpy_batch():
+    # first impacts only (no history to diverge): the numpy batch's shared internal step
+    # against the kernel's own step per row, BATCH_RTOL
+    law = LAWS_RUBBER["msf"]
+    compare(lambda: balls_on_plate(law, 0.02, 1.0, 1e-3, [0.0, 3e-4, 6e-4, 9e-4]), 8, BATCH_RTOL, 4)
+
+
+# -- which laws the kernel takes --------------------------------------------------------------
+class _OwnTangential(MSFLaw):
+    def tangential_force(self, x, s, sdot, onset, F_n=None):
+        F, sl = super().tangential_force(x, s, sdot, onset, F_n)
+        return 0.5 * F, sl
+
+
+def test_registry_laws_take_the_kernel_and_overridden_laws_do_not():
+    pair = ContactPair(PTFE, RIGID)
+    c = Curvature.sphere_on_plane(R_PTFE)
+    for law in LAWS_PTFE.values():
+        assert kernel_law(law) is not None
+    own = _OwnTangential(pair, c, omega=8000.0)
+    assert kernel_law(own) is None
+    mgr = ContactManager([PairSpec("a", "b", own)], 1e-3, "fake")
+    assert all(v is None for v in mgr._kernel_law.values())
+    # and a run with it still works on the numpy path, with its own tangential force
+    eng = balls_on_plate(own, R_PTFE, 1.0, 1e-4, [1e-5], angle_deg=30.0)
+    rec = eng.run_until_records(1, 0.01)[0]
+    assert 0.0 < rec.cor_n < 1.0
