@@ -49,6 +49,7 @@ measured from the second step on).
 
 from __future__ import annotations
 
+import gc
 import math
 from dataclasses import dataclass
 from itertools import chain, repeat
@@ -289,6 +290,8 @@ class PybulletAdapter(EngineAdapter):
         self._f64 = f.astype(np.int64)
         self._slot64 = np.ascontiguousarray(self._slot, dtype=np.int64)
         self._b_uid = np.array([b[0] for b in body_list], int).reshape(B)
+        #: (slots, their body unique ids as a list) of the last step's bodies with one force
+        self._one_cache = (np.zeros(0, int), [])
 
     def _read_bodies(self) -> _Bodies:
         """Every body of the pairs, one read each (module docstring, step 1)."""
@@ -296,11 +299,19 @@ class PybulletAdapter(EngineAdapter):
         uids = self._base_uids
         nb = len(uids)
         # bases: one call per body and quantity, mapped from C with the client id positional (the
-        # keyword costs ~0.1 us a call), the tuples flattened by itertools and converted once
-        po = np.fromiter(chain.from_iterable(chain.from_iterable(
-            map(pb.getBasePositionAndOrientation, uids, repeat(c)))), float, 7 * nb).reshape(nb, 7)
-        vw = np.fromiter(chain.from_iterable(chain.from_iterable(
-            map(pb.getBaseVelocity, uids, repeat(c)))), float, 6 * nb).reshape(nb, 6)
+        # keyword costs ~0.1 us a call), the tuples flattened by itertools and converted once; the
+        # garbage collector paused meanwhile (the 2B result tuples would trigger collections that
+        # traverse them: ~0.1 us a body)
+        gc_was = gc.isenabled()
+        gc.disable()
+        try:
+            po = np.fromiter(chain.from_iterable(chain.from_iterable(
+                map(pb.getBasePositionAndOrientation, uids, repeat(c)))), float, 7 * nb).reshape(nb, 7)
+            vw = np.fromiter(chain.from_iterable(chain.from_iterable(
+                map(pb.getBaseVelocity, uids, repeat(c)))), float, 6 * nb).reshape(nb, 6)
+        finally:
+            if gc_was:
+                gc.enable()
         B = len(self._body_list)
         com, q, v, w = np.empty((B, 3)), np.empty((B, 4)), np.empty((B, 3)), np.empty((B, 3))
         jb = self._base_slots
@@ -628,7 +639,9 @@ class PybulletAdapter(EngineAdapter):
             count, force, torque, at = self._body_loads(bodies, ph, F, point)
         push, world = pb.applyExternalForce, pb.WORLD_FRAME
         one = np.flatnonzero(count == 1)
-        for u, f, p in zip(self._b_uid[one].tolist(), force[one].tolist(), at[one].tolist()):
+        if not np.array_equal(one, self._one_cache[0]):  # mostly the same bodies step after step
+            self._one_cache = (one, self._b_uid[one].tolist())
+        for u, f, p in zip(self._one_cache[1], force[one].tolist(), at[one].tolist()):
             push(u, -1, f, p, world, c)  # the client id positional: a keyword costs ~0.1 us a call
         many = np.flatnonzero(count > 1)
         for u, f, p, t in zip(self._b_uid[many].tolist(), force[many].tolist(), bodies.com[many].tolist(),
