@@ -10,7 +10,7 @@ particles carry contype = conaffinity = 0), so every force between the
 bodies comes from :class:`engines.mujoco.MujocoAdapter`: pair i is
 (particle i, plate), and with particle-particle contacts the pool's
 ``pp_pairs`` follow. Particles are moved by writing their free joints'
-``qpos``/``qvel`` between steps (vectorised).
+``qpos``/``qvel`` between steps (through (n, 7) and (n, 6) views of them).
 
 MuJoCo refuses a moving body whose mass or any principal inertia is below
 ``mjMINVAL`` (1e-15 in SI units here): a solid glass sphere needs
@@ -104,10 +104,15 @@ class MujocoJet(JetPool):
         self.model = mujoco.MjModel.from_xml_string(xml)
         self.data = mujoco.MjData(self.model)
         jid = np.array([self.model.joint(f"p{i}").id for i in range(self.n)])
-        self._qadr = self.model.jnt_qposadr[jid][:, None] + np.arange(7)
-        self._vadr = self.model.jnt_dofadr[jid][:, None] + np.arange(6)
-        v = self.spec.park_velocity()
-        self.data.qvel[self._vadr[:, :3]] = v
+        if not (np.array_equal(self.model.jnt_qposadr[jid], 7 * np.arange(self.n))
+                and np.array_equal(self.model.jnt_dofadr[jid], 6 * np.arange(self.n))
+                and self.model.nq == 7 * self.n and self.model.nv == 6 * self.n):
+            raise RuntimeError("the jet's model does not hold particle i's free joint at qpos[7i:7i+7], "
+                               "qvel[6i:6i+6]")
+        # views (n, 7) and (n, 6) of MuJoCo's own qpos and qvel: particle i is row i
+        self._qpos = self.data.qpos.reshape(self.n, 7)
+        self._qvel = self.data.qvel.reshape(self.n, 6)
+        self._qvel[:, :3] = self.spec.park_velocity()
         mujoco.mj_forward(self.model, self.data)
         pairs = [PairSpec(f"p{i}", "plate", self.laws[int(self.cls[i])], spec.tangential) for i in range(self.n)]
         if self.pp_pairs:
@@ -118,20 +123,21 @@ class MujocoJet(JetPool):
         self._stack.enter_context(installed(self.adapter))
 
     def _place(self, idx, pos, vel) -> None:
-        q = self._qadr[idx]
-        self.data.qpos[q[:, :3]] = pos
-        self.data.qpos[q[:, 3:]] = (1.0, 0.0, 0.0, 0.0)
-        d = self._vadr[idx]
-        self.data.qvel[d[:, :3]] = vel
-        self.data.qvel[d[:, 3:]] = 0.0
+        self._qpos[idx, :3] = pos
+        self._qpos[idx, 3:] = (1.0, 0.0, 0.0, 0.0)
+        self._qvel[idx, :3] = vel
+        self._qvel[idx, 3:] = 0.0
 
     def _centres(self, idx) -> np.ndarray:
-        return self.data.qpos[self._qadr[idx, :3]]
+        return self._qpos[idx, :3]
 
     def _step(self) -> None:
         self.adapter.step(1)
-        if not (np.all(np.isfinite(self.data.qvel)) and np.all(np.isfinite(self.data.qpos))):
-            raise RuntimeError(f"MuJoCo's state is not finite at t = {self.data.time:.6g} s")
+        # one sum each is finite when every entry is (the full check only when a sum is not)
+        d = self.data
+        if not math.isfinite(float(d.qvel.sum()) + float(d.qpos.sum())):
+            if not (np.all(np.isfinite(d.qvel)) and np.all(np.isfinite(d.qpos))):
+                raise RuntimeError(f"MuJoCo's state is not finite at t = {d.time:.6g} s")
 
     @property
     def time(self) -> float:

@@ -25,6 +25,9 @@ from .adapter import PybulletAdapter
 
 import pybullet as pb  # noqa: E402  (after the package, which imports it quietly)
 
+_IDENTITY = (0.0, 0.0, 0.0, 1.0)
+_ZERO3 = (0.0, 0.0, 0.0)
+
 
 def check_spec(spec: JetSpec) -> None:
     """Nothing pybullet-specific to refuse (pybullet computes in double
@@ -77,15 +80,15 @@ class PybulletJet(JetPool):
 
     def _place(self, idx, pos, vel) -> None:
         c = self.client
-        for i, p, v in zip(np.asarray(idx, int), np.asarray(pos, float), np.asarray(vel, float)):
-            u = int(self.uid[i])
-            pb.resetBasePositionAndOrientation(u, p.tolist(), [0.0, 0.0, 0.0, 1.0], physicsClientId=c)
-            pb.resetBaseVelocity(u, v.tolist(), [0.0, 0.0, 0.0], physicsClientId=c)
+        for u, p, v in zip(self.uid[np.asarray(idx, int)].tolist(), np.asarray(pos, float).tolist(),
+                           np.asarray(vel, float).tolist()):
+            pb.resetBasePositionAndOrientation(u, p, _IDENTITY, physicsClientId=c)
+            pb.resetBaseVelocity(u, v, _ZERO3, physicsClientId=c)
 
     def _centres(self, idx) -> np.ndarray:
         c = self.client
-        return np.array([pb.getBasePositionAndOrientation(int(self.uid[i]), physicsClientId=c)[0]
-                         for i in np.asarray(idx, int)], float).reshape(-1, 3)
+        return np.array([pb.getBasePositionAndOrientation(u, physicsClientId=c)[0]
+                         for u in self.uid[np.asarray(idx, int)].tolist()], float).reshape(-1, 3)
 
     def _step(self) -> None:
         self.adapter.step(1)

@@ -47,6 +47,7 @@ step with a wrong estimate is spent in free flight.
 from __future__ import annotations
 
 import abc
+import bisect
 import json
 import math
 import os
@@ -625,20 +626,36 @@ class JetAggregates:
         """Area of one map cell [m^2]."""
         return float(np.diff(self.map_edges_x)[0] * np.diff(self.map_edges_y)[0])
 
+    #: The per-impact values the aggregates read (keys of the impact rows, :meth:`JetPool.run`).
+    COLUMNS = ("angle_deg", "cor_n", "cor_t", "W_diss_n", "W_diss_t", "E_in", "x", "y", "Pc_max", "cls",
+               "outside_validity", "repeat")
+
     def add(self, rows: Sequence[dict]) -> None:
-        """Add plate-impact rows (dicts from :meth:`JetPool._row`)."""
+        """Add plate-impact rows (dicts with the keys ``COLUMNS``, as the impact
+        rows of :meth:`JetPool.run`; cor_t may be None)."""
         if not rows:
             return
-        ang = np.array([r["angle_deg"] for r in rows])
-        cor = np.array([r["cor_n"] for r in rows])
-        cort = np.array([np.nan if r["cor_t"] is None else r["cor_t"] for r in rows])
-        Wn = np.array([r["W_diss_n"] for r in rows])
-        Wt = np.array([r["W_diss_t"] for r in rows])
-        E = np.array([r["E_in"] for r in rows])
-        x = np.array([r["x"] for r in rows])
-        y = np.array([r["y"] for r in rows])
-        pc = np.array([r["Pc_max"] for r in rows])
-        cls = np.array([r["cls"] for r in rows], int)
+        cols = {k: [r[k] for r in rows] for k in self.COLUMNS}
+        cols["cor_t"] = [np.nan if v is None else v for v in cols["cor_t"]]
+        cols["outside_validity"] = [bool(v) for v in cols["outside_validity"]]
+        self.add_columns({k: np.asarray(v) for k, v in cols.items()})
+
+    def add_columns(self, cols: dict[str, np.ndarray]) -> None:
+        """Add k plate impacts given as columns (k,) under the keys ``COLUMNS``:
+        angle_deg [deg], cor_n, cor_t (NaN: none), W_diss_n, W_diss_t, E_in [J],
+        x, y [m], Pc_max [Pa], cls, outside_validity and repeat (bool)."""
+        ang = np.asarray(cols["angle_deg"], dtype=float)
+        if ang.size == 0:
+            return
+        cor = np.asarray(cols["cor_n"], dtype=float)
+        cort = np.asarray(cols["cor_t"], dtype=float)
+        Wn = np.asarray(cols["W_diss_n"], dtype=float)
+        Wt = np.asarray(cols["W_diss_t"], dtype=float)
+        E = np.asarray(cols["E_in"], dtype=float)
+        x = np.asarray(cols["x"], dtype=float)
+        y = np.asarray(cols["y"], dtype=float)
+        pc = np.asarray(cols["Pc_max"], dtype=float)
+        cls = np.asarray(cols["cls"], dtype=int)
         W = Wn + Wt
         na = self.bins.angle_bins
         ia = np.clip(np.searchsorted(self.angle_edges, ang, side="left") - 1, 0, na - 1)  # (a0, a1] bins
@@ -667,12 +684,12 @@ class JetAggregates:
         self.Pc_max_max = max(self.Pc_max_max, float(pc.max()))
         np.add.at(self.cls_n, cls, 1)
         np.add.at(self.cls_W, cls, W)
-        self.n += len(rows)
+        self.n += int(ang.size)
         self.W_n += float(Wn.sum())
         self.W_t += float(Wt.sum())
         self.E_in += float(E.sum())
-        self.n_outside_validity += sum(1 for r in rows if r["outside_validity"])
-        self.n_repeat += sum(1 for r in rows if r["repeat"])
+        self.n_outside_validity += int(np.count_nonzero(cols["outside_validity"]))
+        self.n_repeat += int(np.count_nonzero(cols["repeat"]))
 
     def merge(self, other: "JetAggregates") -> None:
         for k in self._ARRAYS:
@@ -723,6 +740,40 @@ class JetAggregates:
 # The pool driver (engine-agnostic part)
 # --------------------------------------------------------------------------
 PARKED, FLIGHT, DONE = 0, 1, 2
+#: On a plane plate without particle-particle contacts the positions of the
+#: particles in flight are read every this many steps (the checks for a
+#: particle that flew off upward or passed through the plate are safety
+#: checks there: timeouts are checked every step, and a particle is parked
+#: after its record, not on its position); a box plate or particle-particle
+#: contacts read them every step (an edge of the box must not be reached).
+POSITION_CHECK_STEPS = 10
+#: Plate impacts held (as columns) before they are added to the aggregates,
+#: whose np.add.at calls have a fixed cost per call [impacts].
+IMPACT_BUFFER = 4096
+
+
+class _ImpactBuffer:
+    """The last plate impacts (at most IMPACT_BUFFER), kept as the column
+    dicts of their steps and added to ``aggregates`` together when full and
+    on :meth:`flush`."""
+
+    def __init__(self, aggregates: JetAggregates, size: int = IMPACT_BUFFER):
+        self.aggregates = aggregates
+        self.size = size
+        self.count = 0
+        self._parts: list[dict] = []
+
+    def append(self, cols: dict) -> None:
+        self._parts.append(cols)
+        self.count += len(cols["angle_deg"])
+        if self.count >= self.size:
+            self.flush()
+
+    def flush(self) -> None:
+        if self._parts:
+            parts, self._parts, self.count = self._parts, [], 0
+            self.aggregates.add_columns({k: np.concatenate([np.asarray(c[k]) for c in parts])
+                                         for k in JetAggregates.COLUMNS})
 
 
 @dataclass
@@ -742,7 +793,15 @@ class Emitter:
     (uniform or Poisson at the feed rate), size class, speed (truncated
     normal), direction (uniform in solid angle in the cone), start point
     (uniform over the exit disk). Independent of the engine, so both engines
-    see the same particles for the same seed."""
+    see the same particles for the same seed.
+
+    Per emission the draws are, in this order: an exponential gap (Poisson
+    arrivals only), one uniform for the class (more than one class; the
+    inverse of the classes' cumulative probabilities, as
+    ``Generator.choice`` with ``p``), standard normals until one lies within
+    SPEED_TRUNCATION_SD (speed_sd > 0), and four uniforms (cone angle and
+    azimuth, exit radius and azimuth). Scalar draws and float arithmetic:
+    about 3 us per emission."""
 
     def __init__(self, spec: JetSpec, seed):
         self.spec = spec
@@ -752,6 +811,13 @@ class Emitter:
         self.count = 0
         self._t = 0.0
         self._offset = 0.0
+        sp, nz = spec.particles, spec.nozzle
+        cdf = np.asarray(sp.probabilities, dtype=float).cumsum()
+        cdf /= cdf[-1]
+        self._cdf = cdf.tolist()
+        self._axis = tuple(nz.direction)
+        self._b1, self._b2 = tuple(self.e1.tolist()), tuple(self.e2.tolist())
+        self._cos_half = math.cos(math.radians(nz.half_angle))
 
     def shift(self, delay: float) -> None:
         """Delay every later emission by ``delay`` [s]."""
@@ -764,7 +830,7 @@ class Emitter:
         else:
             self._t += rng.exponential(1.0 / sp.feed_rate)
             t = self._t + self._offset
-        cls = int(rng.choice(len(sp.radii), p=sp.probabilities)) if len(sp.radii) > 1 else 0
+        cls = bisect.bisect_right(self._cdf, rng.random()) if len(sp.radii) > 1 else 0
         v = sp.speed_mean
         if sp.speed_sd > 0:
             while True:
@@ -772,15 +838,19 @@ class Emitter:
                 if abs(z) <= SPEED_TRUNCATION_SD:
                     break
             v = sp.speed_mean + z * sp.speed_sd
-        cos_a = 1.0 - rng.random() * (1.0 - math.cos(math.radians(nz.half_angle)))
+        cos_a = 1.0 - rng.random() * (1.0 - self._cos_half)
         sin_a = math.sqrt(max(0.0, 1.0 - cos_a * cos_a))
         phi = 2.0 * math.pi * rng.random()
-        d = cos_a * nz.axis + sin_a * (math.cos(phi) * self.e1 + math.sin(phi) * self.e2)
+        cp, sp_ = math.cos(phi), math.sin(phi)
+        a, b1, b2 = self._axis, self._b1, self._b2
+        d = [cos_a * a[k] + sin_a * (cp * b1[k] + sp_ * b2[k]) for k in range(3)]
         r = 0.5 * nz.diameter * math.sqrt(rng.random())
         psi = 2.0 * math.pi * rng.random()
-        p = np.asarray(nz.position) + r * (math.cos(psi) * self.e1 + math.sin(psi) * self.e2)
+        cq, sq = math.cos(psi), math.sin(psi)
+        pos = nz.position
+        p = np.array([pos[k] + r * (cq * b1[k] + sq * b2[k]) for k in range(3)])
         self.count += 1
-        return _Emission(t, cls, p, v * d)
+        return _Emission(t, cls, p, np.array([v * d[k] for k in range(3)]))
 
 
 @dataclass
@@ -806,7 +876,7 @@ class JetPool(abc.ABC):
 
     :meth:`run` advances until a number of plate impacts is reached, calling
     ``sink(rows)`` with the per-impact rows of every engine step (plain
-    dicts, see :meth:`_row`) and adding them to ``aggregates``
+    dicts, see :meth:`_collect`) and adding them to ``aggregates``
     (:class:`JetAggregates`); only those fixed-size aggregates and the pool's
     own arrays stay in memory. Records are popped from the adapter every step.
 
@@ -857,6 +927,13 @@ class JetPool(abc.ABC):
         self.aggregates = JetAggregates(spec.bins, spec.plate.size, spec.plate.strength, len(sizes))
         self._g = np.array([0.0, 0.0, -spec.gravity])
         self._v_park = spec.park_velocity()
+        self._impacts = _ImpactBuffer(self.aggregates)
+        self._timeout = spec.flight_timeout()
+        self._z_away = spec.nozzle.position[2] + 0.5 * PARK_DISTANCE  # a particle above this flew off upward
+        self._repin_after = PARK_DRIFT / (float(np.linalg.norm(self._v_park)) + 1e-300)
+        if spec.gravity > 0:
+            self._repin_after = min(self._repin_after, math.sqrt(2 * PARK_DRIFT / spec.gravity))
+        self._pin_min = 0.0  # at most the smallest t_pinned of the parked particles [s]
         self.cpu_s = 0.0
         self.wall_s = 0.0
         self._build()
@@ -900,13 +977,15 @@ class JetPool(abc.ABC):
         particles in flight reach the target. ``progress``: a tqdm bar on
         stderr (None: only on a terminal). RuntimeError after ``max_steps``
         steps of this call (default: ten times the steps the feed rate
-        needs, plus 1000)."""
+        needs, plus 1000). Without a sink no row dicts are built (the
+        aggregates read the records directly); the aggregates are complete
+        when run returns."""
         if int(impacts) != impacts or impacts < 0:
             raise ValueError(f"impacts = {impacts!r} must be a whole number >= 0")
         dt = self.spec.dt
         if max_steps is None:
             need = max(0, impacts - self.counts.impacts) / (self.spec.particles.feed_rate * dt)
-            max_steps = int(10 * need) + 1000 + int(10 * self.spec.flight_timeout() / dt)
+            max_steps = int(10 * need) + 1000 + int(10 * self._timeout / dt)
         bar = None
         if progress or progress is None:
             from tqdm import tqdm
@@ -919,76 +998,92 @@ class JetPool(abc.ABC):
             while True:
                 t = self.time
                 self._emit(t, impacts)
-                if self.in_flight == 0 and self._pending is None and self.counts.impacts >= impacts:
+                if self._pending is None and self.counts.impacts >= impacts and self.in_flight == 0:
                     break
                 self._repin(t)
                 self._step()
                 self.counts.steps += 1
                 steps += 1
-                rows = self._collect()
+                n_plate, rows = self._collect(rows=sink is not None)
                 if rows:
-                    plate = [r for r in rows if r["kind"] == "impact"]
-                    self.aggregates.add(plate)
-                    if sink is not None:
-                        sink(rows)
-                    if bar is not None:
-                        bar.update(len(plate))
+                    sink(rows)
+                if bar is not None and n_plate:
+                    bar.update(n_plate)
                 self._check_flight()
                 self._park_done()
                 if steps >= max_steps:
                     raise RuntimeError(f"the jet did not reach {impacts} impacts within {max_steps} steps "
                                        f"({self.counts.impacts} impacts, {self.in_flight} particles out)")
         finally:
+            self._impacts.flush()
             self.cpu_s += time.process_time() - c0
             self.wall_s += time.perf_counter() - w0
             if bar is not None:
                 bar.close()
         return self.counts
 
-    def _busy(self) -> int:
-        """Particles emitted that have not yet given an impact or been lost."""
-        return int(np.count_nonzero(self.state == FLIGHT)) + (self._pending is not None)
-
     def _emit(self, t: float, target: int) -> None:
         """Place every emission due by time t (started at the exit at its own
         time, advanced ballistically to t); draw emissions only while impacts
-        plus particles out stay below ``target``. An emission that finds no
-        free particle of its class waits (counted in ``pool_waits``)."""
-        while True:
-            if self._pending is None:
-                if self.counts.impacts + self._busy() >= target:
+        plus particles in flight stay below ``target``. An emission that finds
+        no free particle of its class waits (counted in ``pool_waits``). The
+        emissions of one call are placed in the engine together."""
+        dt = self.spec.dt
+        flying = int(np.count_nonzero(self.state == FLIGHT))
+        launch: list[tuple[int, _Emission, float]] = []
+        try:
+            while True:
+                if self._pending is None:
+                    if self.counts.impacts + flying >= target:
+                        return
+                    self._pending = self.emitter.next()
+                e = self._pending
+                if e.t > t + 1e-9 * dt:
                     return
-                self._pending = self.emitter.next()
-            e = self._pending
-            if e.t > t + 1e-9 * self.spec.dt:
-                return
-            free = self._free[e.cls]
-            if not free:
-                if not e.waited:
-                    self.counts.pool_waits += 1
-                    e.waited = True
-                return
-            late = t - e.t
-            if late > self.spec.dt:
-                # late by more than the step it fell into (a pool wait, or a pause between
-                # run() calls): it leaves now, and the whole schedule moves with it
-                self.emitter.shift(late)
-                e.t, late = t, 0.0
-            p = e.p + e.v * late + 0.5 * self._g * late * late
-            v = e.v + self._g * late
-            if self.spec.particle_particle and not self._clear(p, v, float(self.spec.particles.radii[e.cls])):
-                if not e.blocked:
-                    self.counts.blocked += 1
-                    e.blocked = True
-                return
-            i = free.popleft()
-            self._pending = None
-            self._place(np.array([i]), p[None, :], v[None, :])
-            self.state[i] = FLIGHT
-            self.emission_id[i] = self.counts.emitted
-            self.t_emit[i], self.p_emit[i], self.v_emit[i] = e.t, e.p, e.v
-            self.deflected[i] = False
-            self.counts.emitted += 1
+                free = self._free[e.cls]
+                if not free:
+                    if not e.waited:
+                        self.counts.pool_waits += 1
+                        e.waited = True
+                    return
+                late = t - e.t
+                if late > dt:
+                    # late by more than the step it fell into (a pool wait, or a pause between
+                    # run() calls): it leaves now, and the whole schedule moves with it
+                    self.emitter.shift(late)
+                    e.t, late = t, 0.0
+                if self.spec.particle_particle:
+                    self._launch(launch)  # _clear reads the engine's centres
+                    launch = []
+                    p = e.p + e.v * late + 0.5 * self._g * late * late
+                    v = e.v + self._g * late
+                    if not self._clear(p, v, float(self.spec.particles.radii[e.cls])):
+                        if not e.blocked:
+                            self.counts.blocked += 1
+                            e.blocked = True
+                        return
+                launch.append((free.popleft(), e, late))
+                self._pending = None
+                flying += 1
+        finally:
+            self._launch(launch)
+
+    def _launch(self, launch: list[tuple[int, _Emission, float]]) -> None:
+        """Put particles i at their emissions, ``late`` [s] after leaving the exit."""
+        if not launch:
+            return
+        idx = np.array([i for i, _, _ in launch])
+        late = np.array([lt for _, _, lt in launch])[:, None]
+        p0 = np.array([e.p for _, e, _ in launch])
+        v0 = np.array([e.v for _, e, _ in launch])
+        self._place(idx, p0 + v0 * late + 0.5 * self._g * late * late, v0 + self._g * late)
+        self.state[idx] = FLIGHT
+        self.emission_id[idx] = self.counts.emitted + np.arange(idx.size)
+        self.t_emit[idx] = [e.t for _, e, _ in launch]
+        self.p_emit[idx] = p0
+        self.v_emit[idx] = v0
+        self.deflected[idx] = False
+        self.counts.emitted += int(idx.size)
 
     def _clear(self, p: np.ndarray, v: np.ndarray, R: float) -> bool:
         """With particle-particle contacts: may a particle of radius R start at
@@ -1004,126 +1099,160 @@ class JetPool(abc.ABC):
 
     def _repin(self, t: float) -> None:
         """Put parked particles that drifted PARK_DRIFT back on their slot (velocity: the park velocity)."""
+        if t - self._pin_min < self._repin_after:  # no parked particle is due (_pin_min <= their t_pinned)
+            return
         parked = self.state == PARKED
-        vp = float(np.linalg.norm(self._v_park)) + 1e-300
-        limit = PARK_DRIFT / vp
-        if self.spec.gravity > 0:
-            limit = min(limit, math.sqrt(2 * PARK_DRIFT / self.spec.gravity))
-        idx = np.flatnonzero(parked & (t - self.t_pinned >= limit))
+        idx = np.flatnonzero(parked & (t - self.t_pinned >= self._repin_after))
         if idx.size:
-            self._place(idx, self.park[idx], np.repeat(self._v_park[None, :], idx.size, axis=0))
+            self._place(idx, self.park[idx], np.broadcast_to(self._v_park, (idx.size, 3)))
             self.t_pinned[idx] = t
+        self._pin_min = float(self.t_pinned[parked].min()) if np.any(parked) else math.inf
 
     def _park(self, idx: np.ndarray, t: float) -> None:
-        self._place(idx, self.park[idx], np.repeat(self._v_park[None, :], idx.size, axis=0))
+        self._place(idx, self.park[idx], np.broadcast_to(self._v_park, (idx.size, 3)))
         self.state[idx] = PARKED
         self.t_pinned[idx] = t
-        for i in idx:
-            self._free[int(self.cls[i])].append(int(i))
+        self._pin_min = min(self._pin_min, t)
+        for i, c in zip(idx.tolist(), self.cls[idx].tolist()):
+            self._free[c].append(i)
 
-    def _required(self) -> set[int]:
-        """Particles in a contact or with a timing correction still in the engine."""
+    def _required(self) -> np.ndarray:
+        """Mask (n,) of the particles in a contact or with a timing correction still in the engine."""
         req = np.asarray(self.adapter.manager.required_pairs, dtype=int)
-        out = set(int(p) for p in req if p < self.n)
-        for p in req[req >= self.n]:
-            i, j = self.pp_pairs[int(p) - self.n]
-            out.update((i, j))
+        out = np.zeros(self.n, bool)
+        out[req[req < self.n]] = True
+        for p in req[req >= self.n].tolist():
+            out[list(self.pp_pairs[p - self.n])] = True
         return out
 
     def _park_done(self) -> None:
         done = np.flatnonzero(self.state == DONE)
         if done.size:
-            req = self._required()
-            ok = np.array([int(i) not in req for i in done], bool)
-            if np.any(ok):
-                self._park(done[ok], self.time)
+            ok = done[~self._required()[done]]
+            if ok.size:
+                self._park(ok, self.time)
 
     def _check_flight(self) -> None:
-        """Particles that left the domain or timed out without an impact: lost."""
+        """Particles that timed out without an impact (every step) or left the
+        domain (positions read every POSITION_CHECK_STEPS steps on a plane
+        plate without particle-particle contacts, else every step): lost."""
         fl = np.flatnonzero(self.state == FLIGHT)
         if fl.size == 0:
             return
         t = self.time
-        c = self._centres(fl)
-        lost = (t - self.t_emit[fl]) > self.spec.flight_timeout()
-        lost |= c[:, 2] > np.asarray(self.spec.nozzle.position)[2] + 0.5 * PARK_DISTANCE  # flew off upward
-        if c[:, 2].min() < -self.radius[fl].max():
-            i = int(fl[np.argmin(c[:, 2])])
-            raise RuntimeError(f"particle {i} passed through the plate (centre z = {c[:, 2].min():.4g} m): "
-                               "the contact was missed")
-        if self.spec.plate.kind == "box":
-            half = 0.5 * np.asarray(self.spec.plate.size)
-            margin = (2.0 * self.radius[fl] + 2.0 * np.linalg.norm(self.v_emit[fl], axis=1) * self.spec.dt)
-            lost |= np.any(np.abs(c[:, :2]) > half - margin[:, None], axis=1)
+        lost = (t - self.t_emit[fl]) > self._timeout
+        box = self.spec.plate.kind == "box"
+        if box or self.spec.particle_particle or self.counts.steps % POSITION_CHECK_STEPS == 0:
+            c = self._centres(fl)
+            lost |= c[:, 2] > self._z_away  # flew off upward
+            if c[:, 2].min() < -self.radius[fl].max():
+                i = int(fl[np.argmin(c[:, 2])])
+                raise RuntimeError(f"particle {i} passed through the plate (centre z = {c[:, 2].min():.4g} m): "
+                                   "the contact was missed")
+            if box:
+                half = 0.5 * np.asarray(self.spec.plate.size)
+                margin = (2.0 * self.radius[fl] + 2.0 * np.linalg.norm(self.v_emit[fl], axis=1) * self.spec.dt)
+                lost |= np.any(np.abs(c[:, :2]) > half - margin[:, None], axis=1)
         if np.any(lost):
-            req = self._required()
-            idx = np.array([int(i) for i in fl[lost] if int(i) not in req], int)
+            idx = fl[lost]
+            idx = idx[~self._required()[idx]]
             if idx.size:
                 self.counts.lost += int(idx.size)
                 self._park(idx, t)
 
     # -- records -> rows -------------------------------------------------------------
-    def _collect(self) -> list[dict]:
+    def _collect(self, rows: bool) -> tuple[int, list[dict]]:
+        """Pop the adapter's records: add the plate impacts to the aggregates
+        (through the impact buffer) and count them; with ``rows``, also return
+        one row dict per record (kind "impact" or "particle-particle").
+        Returns (plate impacts, rows).
+
+        The plate impacts of one step are converted together. A particle's
+        first impact after emission is ballistic from the exit, so the
+        incoming velocity is v_emit + g (t_onset - t_emit) and the impact
+        point is the centre at t_onset minus R n (exact, while the record's
+        own point is the contact point at the start of the onset step). After
+        a particle-particle contact, or for a repeated impact, the record's
+        speeds and point are used."""
         recs = self.adapter.pop_records()
-        rows = []
+        if not recs:
+            return 0, []
+        out: list[dict | None] = []
+        plate, where, idx, repeat, deflected, flat = [], [], [], [], [], []
+        state, defl, n = self.state, self.deflected, self.n
         for rec in recs:
-            pair = int(rec.inputs["pair"])
-            if pair < self.n:
-                rows.append(self._row(pair, rec))
-            else:
-                i, j = self.pp_pairs[pair - self.n]
-                self.deflected[[i, j]] = True
-                self.counts.pp_impacts += 1
-                W = rec.W_diss_n + rec.W_diss_t
-                self.counts.pp_W += W
-                rows.append({"kind": "particle-particle", "p1": i, "p2": j, "emission1": int(self.emission_id[i]),
-                             "emission2": int(self.emission_id[j]), "t_onset": rec.inputs["t_onset"],
-                             "v_n_in": rec.inputs["v_n_in"], "cor_n": rec.cor_n, "W_diss_n": rec.W_diss_n,
-                             "W_diss_t": rec.W_diss_t, "engine": self.engine})
-        return rows
-
-    def _row(self, i: int, rec) -> dict:
-        """The per-impact row of a plate record of particle i: the record's
-        main outputs, the impact point on the plate [m] (x, y), the incoming
-        velocity and the angle to the plate [deg].
-
-        A particle's first impact after emission is ballistic from the exit,
-        so the incoming velocity is v_emit + g (t_onset - t_emit) and the
-        impact point is the centre at t_onset minus R n (exact, while the
-        record's own point is the contact point at the start of the onset
-        step). After a particle-particle contact, or for a repeated impact,
-        the record's speeds and point are used."""
-        n = np.asarray(rec.inputs["normal"], dtype=float)
-        t_on = float(rec.inputs["t_onset"])
-        repeat = self.state[i] != FLIGHT
-        if not repeat and not self.deflected[i]:
-            s = t_on - self.t_emit[i]
-            v_in = self.v_emit[i] + self._g * s
-            centre = self.p_emit[i] + self.v_emit[i] * s + 0.5 * self._g * s * s
-            point = centre - self.radius[i] * n
-            speed = float(np.linalg.norm(v_in))
-            vn = -float(v_in @ n)
-            angle = math.degrees(math.asin(min(1.0, max(0.0, vn / speed))))
-        else:
-            point = np.asarray(rec.inputs["point"], dtype=float)
-            vn, vt = float(rec.inputs["v_n_in"]), float(rec.inputs["v_t_in"])
-            speed = math.hypot(vn, vt)
-            angle = math.degrees(math.atan2(vn, vt))
-        self.state[i] = DONE
-        E_in = 0.5 * self.mass[i] * speed * speed
-        self.counts.impacts += 1
-        return {
-            "kind": "impact", "engine": self.engine, "emission": int(self.emission_id[i]), "particle": i,
-            "cls": int(self.cls[i]), "radius": float(self.radius[i]), "mass": float(self.mass[i]),
-            "t_emit": float(self.t_emit[i]), "t_onset": t_on, "speed_in": speed, "v_n_in": vn,
-            "v_n_in_record": float(rec.inputs["v_n_in"]), "angle_deg": angle, "x": float(point[0]),
-            "y": float(point[1]), "x_record": float(rec.inputs["point"][0]), "y_record": float(rec.inputs["point"][1]),
-            "E_in": E_in, "cor_n": rec.cor_n, "cor_t": rec.cor_t, "cor_t_contact": rec.cor_t_contact, "tau": rec.tau,
-            "x_max": rec.x_max, "F_max": rec.F_max, "Pc_max": rec.Pc_max, "W_diss_n": rec.W_diss_n,
-            "W_diss_t": rec.W_diss_t, "Q_t": rec.Q_t, "spin_out": rec.spin_out, "omega_x": rec.omega_x,
-            "ended_by": rec.ended_by, "outside_validity": "; ".join(rec.outside_validity), "repeat": bool(repeat),
-            "deflected": bool(self.deflected[i]),
-        }
+            d = rec.inputs
+            pair = int(d["pair"])
+            if pair < n:
+                # a repeat: the particle's record has arrived before (also earlier in this step) or it was parked
+                repeat.append(state[pair] != FLIGHT or pair in idx)
+                deflected.append(bool(defl[pair]))
+                idx.append(pair)
+                plate.append(rec)
+                where.append(len(out))
+                out.append(None)
+                flat += d["normal"]
+                flat += d["point"]
+                flat += (d["t_onset"], d["v_n_in"], d["v_t_in"], rec.cor_n, np.nan if rec.cor_t is None else rec.cor_t,
+                         rec.W_diss_n, rec.W_diss_t, rec.Pc_max)
+                continue
+            i, j = self.pp_pairs[pair - n]
+            defl[[i, j]] = True
+            self.counts.pp_impacts += 1
+            self.counts.pp_W += rec.W_diss_n + rec.W_diss_t
+            if rows:
+                out.append({"kind": "particle-particle", "p1": i, "p2": j, "emission1": int(self.emission_id[i]),
+                            "emission2": int(self.emission_id[j]), "t_onset": d["t_onset"], "v_n_in": d["v_n_in"],
+                            "cor_n": rec.cor_n, "W_diss_n": rec.W_diss_n, "W_diss_t": rec.W_diss_t,
+                            "engine": self.engine})
+        if not plate:
+            return 0, out if rows else []
+        k = len(plate)
+        idx = np.array(idx)
+        repeat, deflected = np.array(repeat, bool), np.array(deflected, bool)
+        first = ~(repeat | deflected)
+        f = np.array(flat, dtype=float).reshape(k, 14)
+        normal, p_rec = f[:, 0:3], f[:, 3:6]
+        t_on, vn_rec, vt_rec = f[:, 6], f[:, 7], f[:, 8]
+        # ballistic from the exit (first impacts)
+        s = (t_on - self.t_emit[idx])[:, None]
+        v_emit = self.v_emit[idx]
+        v_in = v_emit + self._g * s
+        centre = self.p_emit[idx] + v_emit * s + 0.5 * self._g * s * s
+        vx, vy, vz = v_in.T
+        speed_b = np.sqrt(vx * vx + vy * vy + vz * vz)
+        vn_b = -(vx * normal[:, 0] + vy * normal[:, 1] + vz * normal[:, 2])
+        point = np.where(first[:, None], centre - self.radius[idx][:, None] * normal, p_rec)
+        speed = np.where(first, speed_b, np.hypot(vn_rec, vt_rec))
+        vn = np.where(first, vn_b, vn_rec)
+        # the angle to the plate [deg] with math's asin/atan2 (numpy's may differ in the last bit)
+        angle = np.array([math.degrees(math.asin(min(1.0, max(0.0, a / b)))) if fi else math.degrees(math.atan2(a, c))
+                          for fi, a, b, c in zip(first.tolist(), vn.tolist(), speed.tolist(), vt_rec.tolist())])
+        E_in = 0.5 * self.mass[idx] * speed * speed
+        state[idx] = DONE
+        self.counts.impacts += k
+        self._impacts.append({
+            "angle_deg": angle, "cor_n": f[:, 9], "cor_t": f[:, 10], "W_diss_n": f[:, 11], "W_diss_t": f[:, 12],
+            "E_in": E_in, "x": point[:, 0], "y": point[:, 1], "Pc_max": f[:, 13], "cls": self.cls[idx],
+            "outside_validity": [bool(r.outside_validity) for r in plate], "repeat": repeat})
+        if not rows:
+            return k, []
+        cols = zip(idx.tolist(), self.cls[idx].tolist(), self.radius[idx].tolist(), self.mass[idx].tolist(),
+                   self.emission_id[idx].tolist(), self.t_emit[idx].tolist(), t_on.tolist(), speed.tolist(),
+                   vn.tolist(), vn_rec.tolist(), angle.tolist(), point[:, 0].tolist(), point[:, 1].tolist(),
+                   p_rec[:, 0].tolist(), p_rec[:, 1].tolist(), E_in.tolist(), repeat.tolist(), deflected.tolist())
+        for m, rec, (i, c, R, mass, em, te, ton, sp, vn_, vnr, ang, x, y, xr, yr, E, rep, defl) in zip(
+                where, plate, cols):
+            out[m] = {
+                "kind": "impact", "engine": self.engine, "emission": em, "particle": i, "cls": c, "radius": R,
+                "mass": mass, "t_emit": te, "t_onset": ton, "speed_in": sp, "v_n_in": vn_, "v_n_in_record": vnr,
+                "angle_deg": ang, "x": x, "y": y, "x_record": xr, "y_record": yr, "E_in": E, "cor_n": rec.cor_n,
+                "cor_t": rec.cor_t, "cor_t_contact": rec.cor_t_contact, "tau": rec.tau, "x_max": rec.x_max,
+                "F_max": rec.F_max, "Pc_max": rec.Pc_max, "W_diss_n": rec.W_diss_n, "W_diss_t": rec.W_diss_t,
+                "Q_t": rec.Q_t, "spin_out": rec.spin_out, "omega_x": rec.omega_x, "ended_by": rec.ended_by,
+                "outside_validity": "; ".join(rec.outside_validity), "repeat": rep, "deflected": defl,
+            }
+        return k, out
 
 
 def make_pool(engine: str, spec: JetSpec, seed=0, **kw) -> JetPool:
