@@ -55,6 +55,15 @@ a resting stack of rubber balls rests 80% too deep at dt = 1 ms). For the
 first step a_ext is gravity acting on the bodies that are not welded to the
 world.
 
+The per-step work of the free group (pairs of a free sphere and a plane, a
+fixed body or another free sphere: detection, v_rel, W, the a_ext
+bookkeeping, the forces) is compiled with numba
+(:mod:`engines.mujoco._kernels`, reading the MjData arrays directly); the
+numpy implementation it follows stays reachable with
+``MujocoAdapter(..., compiled=False)``, and tests/test_mujoco_kernels.py
+holds the two to round-off. Pairs read through Jacobians (box faces, links
+of chains) take the same path either way.
+
 The hook is process-global: :func:`installed` puts ONE dispatching hook in
 place (dispatch by the MjData object), chains the previously installed
 Python hook and restores it in ``finally``, also when ``mj_step`` raises.
@@ -73,7 +82,7 @@ import mujoco
 import numpy as np
 
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
-from engines._geometry import Detection, sphere_box_face, sphere_plane, sphere_sphere
+from engines._geometry import COINCIDENT_RTOL, Detection, sphere_box_face, sphere_plane, sphere_sphere
 from engines.base import (
     STEPS_PER_CONTACT_MIN,
     ContactForces,
@@ -228,6 +237,27 @@ class _FreeGroup:
             dof1=model.jnt_dofadr[jnt1].astype(int), dof2=np.where(free2, model.jnt_dofadr[jnt2], 0).astype(int),
             jnt1=jnt1, jnt2=jnt2)
 
+    def packed(self, model: mujoco.MjModel) -> tuple[np.ndarray, np.ndarray]:
+        """The group's constants for :mod:`engines.mujoco._kernels`: (gi (k, NGI)
+        int64, gf (k, NGF) float64), columns as named there."""
+        from engines.mujoco import _kernels as K
+
+        k = self.index.size
+        gi = np.zeros((k, K.NGI), np.int64)
+        for col, v in ((K.I_G1, self.g1), (K.I_G2, self.g2), (K.I_B1, self.b1), (K.I_B2, self.b2),
+                       (K.I_ROOT1, model.body_rootid[self.b1]), (K.I_ROOT2, model.body_rootid[self.b2]),
+                       (K.I_JNT1, self.jnt1), (K.I_JNT2, self.jnt2), (K.I_DOF1, self.dof1), (K.I_DOF2, self.dof2),
+                       (K.I_PLANE, self.plane), (K.I_FREE2, self.free2), (K.I_PAIR, self.index)):
+            gi[:, col] = v
+        gf = np.zeros((k, K.NGF))
+        gf[:, K.F_R1], gf[:, K.F_R2] = self.R1, self.R2
+        gf[:, K.F_INV_M1], gf[:, K.F_INV_M2] = self.inv_m1, self.inv_m2
+        gf[:, K.F_A0:K.F_A0 + 3] = self.a0
+        gf[:, K.F_INVI1:K.F_INVI1 + 3] = 1.0 / model.body_inertia[self.b1]
+        I2 = np.where(self.free2[:, None], model.body_inertia[self.b2], 1.0)
+        gf[:, K.F_INVI2:K.F_INVI2 + 3] = np.where(self.free2[:, None], 1.0 / I2, 0.0)
+        return gi, gf
+
     def kinematics(self, m, d, dt, required, last_v, last_dv, have_last) -> dict:
         """Candidate rows of the group (a dict of ContactKinematics fields) and
         the a_ext bookkeeping of every pair of the group."""
@@ -344,12 +374,14 @@ class MujocoAdapter(EngineAdapter):
 
     model, data: the MuJoCo model and its data. pairs: PairSpec with
     ``body1`` a sphere geom name and ``body2`` a sphere, plane or box geom
-    name (a box only across a face).
+    name (a box only across a face). compiled: the free group's per-step
+    work in :mod:`engines.mujoco._kernels` (default) or in numpy (the
+    reference implementation; the same results to round-off).
     """
 
     name = "mujoco"
 
-    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, pairs: list[PairSpec]):
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, pairs: list[PairSpec], compiled: bool = True):
         if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
             raise ValueError(f"model, data must be mujoco.MjModel and mujoco.MjData, got "
                              f"{type(model).__name__}, {type(data).__name__}")
@@ -379,6 +411,15 @@ class MujocoAdapter(EngineAdapter):
         self._is_fast[self._fast.index] = True
         self._slow = [p for p in self._pairs if not self._is_fast[p.index]]
         self._apply_fast: tuple | None = None
+        #: the free group's per-step work compiled (engines.mujoco._kernels) or in numpy
+        self.compiled = bool(compiled)
+        if self.compiled:
+            from engines.mujoco import _kernels
+
+            self._kernels = _kernels
+            self._gi, self._gf = self._fast.packed(model)
+            self._group_of = np.full(P, -1, np.int64)  # position in the free group of each pair (-1: slow)
+            self._group_of[self._fast.index] = np.arange(self._fast.index.size)
         self.manager.set_body_probe(self._probe)
         #: number of engine steps run through :meth:`step`
         self.steps = 0
@@ -470,7 +511,10 @@ class MujocoAdapter(EngineAdapter):
         # over the step (the contact point stays under the ball; the manager's W
         # assumes it), so every RK4 stage gets the same force and moment
         if self._apply_fast is not None:
-            self._fast.apply(data, *self._apply_fast)
+            if self.compiled:
+                self._kernels.apply(data.qfrc_passive, data.xipos, data.xanchor, data.xmat, *self._apply_fast)
+            else:
+                self._fast.apply(data, *self._apply_fast)
         for b1, b2, fixed2, F, r1, r2 in self._apply:
             mujoco.mj_applyFT(model, data, F, _ZERO3, data.xipos[b1] + r1, b1, data.qfrc_passive)
             if not fixed2:
@@ -512,8 +556,12 @@ class MujocoAdapter(EngineAdapter):
         """Read the kinematics of every candidate pair, call the manager once,
         and keep the forces to apply in every hook call of this step. Pairs of
         a free sphere and a plane, a fixed body or another free sphere are
-        read for all of them at once (:class:`_FreeGroup`); the others (links
-        of chains, box faces) through MuJoCo's Jacobians pair by pair."""
+        read for all of them at once (:class:`_FreeGroup`, or compiled:
+        :meth:`_compute_compiled`); the others (links of chains, box faces)
+        through MuJoCo's Jacobians pair by pair."""
+        if self.compiled:
+            self._compute_compiled()
+            return
         m, d = self.model, self.data
         dt = self.timestep
         P = len(self._pairs)
@@ -525,9 +573,106 @@ class MujocoAdapter(EngineAdapter):
             blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last)
             W_fast = blk
             blocks.append(blk["rows"])
+        slow, points, jacs = self._slow_rows(required)
+        if slow is not None:
+            blocks.append(slow)
+        self._apply = []
+        self._apply_fast = None
+        # the manager is called every step, also without candidates (it completes records then)
+        kin = self._assemble(blocks)
+        out: ContactForces = self.manager.step(kin)
+        self.last_forces = out if kin.pair.size else None
+        pair = np.asarray(out.pair, dtype=int)
+        force = np.asarray(out.force, dtype=float)
+        hit = np.any(force != 0.0, axis=1)
+        if not np.any(hit):
+            return
+        # what the next step's a_ext leaves out (module docstring): the generalised impulse
+        # J_q^T P_q of every pair's force of this step, except the held forces (held_forces),
+        # which stay in the other pairs' a_ext as their prediction for the next step
+        keep = hit & held_forces(self.manager, pair, float(d.time) + dt)
+        Q = np.zeros(m.nv)
+        fast = hit & self._is_fast[pair]
+        if np.any(fast):
+            self._apply_fast = self._fast.forces(d, pair[fast], force[fast], W_fast)
+            sub = fast & ~keep
+            if np.any(sub):
+                self._fast.apply(d, *self._fast.forces(d, pair[sub], force[sub], W_fast), out=Q)
+        self._slow_forces(pair, force, hit, keep, points, Q)
+        self._cross_dv(Q * dt, W_fast, jacs)
+        # a held pair's own force is the manager's, not a prediction: leave it out too
+        for k in np.flatnonzero(keep):
+            i = int(pair[k])
+            self._last_dv[i] += kin.W[k] @ (force[k] * dt)
+
+    def _compute_compiled(self) -> None:
+        """:meth:`_compute` with the free group's work in :mod:`engines.mujoco._kernels`
+        (the same arithmetic, tests/test_mujoco_kernels.py), reading the MjData
+        arrays directly; the slow pairs as in :meth:`_compute`."""
+        K = self._kernels
+        m, d, mgr = self.model, self.data, self.manager
+        dt = self.timestep
+        required = np.zeros(len(self._pairs), bool)
+        required[mgr.required_pairs] = True  # in contact, or a correction to remove
+        f = self._fast
+        fast = p1 = p2 = None
+        if f.index.size:
+            err, pair, x, nrm, point, v_rel, v_com, W, W_com, a_ext, p1, p2 = K.free_kinematics(
+                self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat, required,
+                self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL)
+            if err != K.ERR_NONE:
+                for _ in f._detect(d, d.geom_xpos[f.g1]):  # the numpy detection says what is wrong
+                    pass
+                raise RuntimeError(f"free-group detection failed (code {err}) where the numpy detection passes")
+            fast = dict(pair=pair, x=x, normal=nrm, point=point, v_rel=v_rel, v_com_rel=v_com, W=W, W_com=W_com,
+                        a_ext=a_ext)
+        slow, points, jacs = self._slow_rows(required) if self._slow else (None, {}, [])
+        self._apply = []
+        self._apply_fast = None
+        if slow is None and fast is not None:
+            kin = ContactKinematics(t=float(d.time), **fast)  # the group's rows are in pair order
+        else:
+            kin = self._assemble([b for b in (fast, slow) if b is not None])
+        out: ContactForces = mgr.step(kin)
+        self.last_forces = out if kin.pair.size else None
+        pair = np.asarray(out.pair, dtype=np.int64)
+        force = np.asarray(out.force, dtype=float).reshape(-1, 3)
+        # held_forces, for the rows with a force
+        hit, keep, n_hit, n_unheld = K.held(pair, force, mgr.active, mgr.settled, mgr.t_onset, mgr.tau_est,
+                                            float(d.time) + dt, SETTLE_AFTER_DURATIONS, STEPS_PER_CONTACT_MIN, mgr.dt)
+        if not n_hit:
+            return
+        Q = np.zeros(m.nv) if n_unheld else None  # the impulses that leave the next step's a_ext
+        if fast is not None:
+            todo = K.free_forces(self._gi, self._group_of, pair, force, hit, keep, False, p1, p2, d.xipos)
+            if todo[0].shape[0]:
+                self._apply_fast = todo
+                if n_unheld:
+                    sub = K.free_forces(self._gi, self._group_of, pair, force, hit, keep, True, p1, p2, d.xipos)
+                    K.apply(Q, d.xipos, d.xanchor, d.xmat, *sub)
+        if self._slow:
+            self._slow_forces(pair, force, hit, keep, points, Q)
+        Qdt = None if Q is None else Q * dt
+        if Qdt is not None and np.any(Qdt):  # _cross_dv
+            dq = np.zeros((1, m.nv))
+            mujoco.mj_solveM(m, d, dq, Qdt.reshape(1, -1))
+            dq = dq[0]
+            if fast is not None:
+                K.velocity_change(self._gi, dq, d.xmat, d.xanchor, p1, p2, self._last_dv)
+            for i, J in jacs:
+                self._last_dv[i] = J @ dq
+        K.held_dv(self._last_dv, pair, keep, kin.W, force, dt)
+
+    def _slow_rows(self, required) -> tuple[dict | None, dict, list]:
+        """The candidate rows of the pairs read through Jacobians (a dict of
+        ContactKinematics fields, None: no candidate), their points and
+        Jacobians {pair: (point1, point2, J)}, and (pair, J (3, nv)) of every
+        slow pair for the a_ext bookkeeping, which is done here for them."""
+        m, d = self.model, self.data
+        dt = self.timestep
         rows = []
         points = {}
-        jacs = []  # (pair index, J (3, nv)) of every slow pair, for the a_ext bookkeeping
+        jacs = []
         for p in self._slow:
             det = self._geometry(p)
             x, n, point = float(det.x[0]), det.normal[0], det.point[0]
@@ -556,18 +701,21 @@ class MujocoAdapter(EngineAdapter):
             W_com = Jc @ MinvJT.T
             rows.append((i, x, n, point, v_rel, v_com, W, W_com, a_ext))
             points[i] = (p1, p2, J)
-        if rows:
-            cols = list(zip(*rows))
-            blocks.append(dict(pair=np.array(cols[0], dtype=int), x=np.array(cols[1], dtype=float),
-                               normal=np.array(cols[2], dtype=float), point=np.array(cols[3], dtype=float),
-                               v_rel=np.array(cols[4], dtype=float), v_com_rel=np.array(cols[5], dtype=float),
-                               W=np.array(cols[6], dtype=float), W_com=np.array(cols[7], dtype=float),
-                               a_ext=np.array(cols[8], dtype=float)))
-        self._apply = []
-        self._apply_fast = None
-        # the manager is called every step, also without candidates (it completes records then)
-        shapes = dict(pair=(), x=(), normal=(3,), point=(3,), v_rel=(3,), v_com_rel=(3,), W=(3, 3),
-                      W_com=(3, 3), a_ext=(3,))
+        if not rows:
+            return None, points, jacs
+        cols = list(zip(*rows))
+        return (dict(pair=np.array(cols[0], dtype=int), x=np.array(cols[1], dtype=float),
+                     normal=np.array(cols[2], dtype=float), point=np.array(cols[3], dtype=float),
+                     v_rel=np.array(cols[4], dtype=float), v_com_rel=np.array(cols[5], dtype=float),
+                     W=np.array(cols[6], dtype=float), W_com=np.array(cols[7], dtype=float),
+                     a_ext=np.array(cols[8], dtype=float)), points, jacs)
+
+    _SHAPES = dict(pair=(), x=(), normal=(3,), point=(3,), v_rel=(3,), v_com_rel=(3,), W=(3, 3), W_com=(3, 3),
+                   a_ext=(3,))
+
+    def _assemble(self, blocks: list[dict]) -> ContactKinematics:
+        """One ContactKinematics from blocks of rows, in pair order."""
+        shapes = self._SHAPES
         if len(blocks) == 1:
             cat = blocks[0]
         else:
@@ -575,39 +723,21 @@ class MujocoAdapter(EngineAdapter):
                    for k, s in shapes.items()}
             cat["pair"] = cat["pair"].astype(int)
         order = np.argsort(cat["pair"], kind="stable")  # rows in pair order
-        kin = ContactKinematics(t=float(d.time), **{k: np.reshape(v[order], (-1,) + shapes[k])
-                                                    for k, v in cat.items()})
-        out: ContactForces = self.manager.step(kin)
-        self.last_forces = out if kin.pair.size else None
-        pair = np.asarray(out.pair, dtype=int)
-        force = np.asarray(out.force, dtype=float)
-        hit = np.any(force != 0.0, axis=1)
-        if not np.any(hit):
-            return
-        # what the next step's a_ext leaves out (module docstring): the generalised impulse
-        # J_q^T P_q of every pair's force of this step, except the held forces (held_forces),
-        # which stay in the other pairs' a_ext as their prediction for the next step
-        keep = hit & held_forces(self.manager, pair, float(d.time) + dt)
-        Q = np.zeros(m.nv)
-        fast = hit & self._is_fast[pair]
-        if np.any(fast):
-            self._apply_fast = self._fast.forces(d, pair[fast], force[fast], W_fast)
-            sub = fast & ~keep
-            if np.any(sub):
-                self._fast.apply(d, *self._fast.forces(d, pair[sub], force[sub], W_fast), out=Q)
+        return ContactKinematics(t=float(self.data.time), **{k: np.reshape(v[order], (-1,) + shapes[k])
+                                                             for k, v in cat.items()})
+
+    def _slow_forces(self, pair, force, hit, keep, points, Q) -> None:
+        """Queue the slow pairs' forces for the hook (``mj_applyFT``) and add
+        the generalised impulse rate J^T F of those not held to Q (nv,)."""
+        d = self.data
         for k in np.flatnonzero(hit & ~self._is_fast[pair]):
             i = int(pair[k])
             F = np.array(force[k], dtype=float)
             p = self._pairs[i]
             p1, p2, J = points[i]
-            if not keep[k]:
+            if not keep[k]:  # Q is not None then
                 Q += J.T @ F
             self._apply.append((p.body1, p.body2, p.fixed2, F, p1 - d.xipos[p.body1], p2 - d.xipos[p.body2]))
-        self._cross_dv(Q * dt, W_fast, jacs)
-        # a held pair's own force is the manager's, not a prediction: leave it out too
-        for k in np.flatnonzero(keep):
-            i = int(pair[k])
-            self._last_dv[i] += kin.W[k] @ (force[k] * dt)
 
     def _cross_dv(self, Qdt, blk, jacs) -> None:
         """The change of every pair's v_rel that this step's impulses cause,

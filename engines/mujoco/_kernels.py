@@ -1,0 +1,342 @@
+"""Compiled (numba) per-step work of the MuJoCo adapter's free group.
+
+The same arithmetic as the numpy methods of
+:class:`engines.mujoco.adapter._FreeGroup` and the a_ext bookkeeping of
+:class:`engines.mujoco.adapter.MujocoAdapter`, written per pair with scalar
+loops and compiled, reading the MjData arrays (numpy views) directly:
+
+1. :func:`free_kinematics`: detection (sphere-plane, sphere-sphere;
+   :mod:`engines._geometry`), v_rel from ``cvel``, the a_ext estimate and its
+   state, the candidate test (:func:`engines._contacts.closing_distance`),
+   W, W_com and v_com_rel of the candidates;
+2. :func:`held`: :func:`engines.mujoco.adapter.held_forces` for the rows with
+   a force;
+3. :func:`free_forces` and :func:`apply`: the free joints' generalised force
+   (force; torque about the joint anchor in body axes) added to
+   ``qfrc_passive`` (or to an impulse vector);
+4. :func:`velocity_change` and :func:`held_dv`: the change of every pair's
+   v_rel this step's impulses cause, for the next step's a_ext.
+
+The group's constants are packed into two arrays built once by the adapter:
+``gi`` (k, NGI) int64 with the columns ``I_*`` and ``gf`` (k, NGF) float64
+with the columns ``F_*``. Equality with the numpy path:
+tests/test_mujoco_kernels.py.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# columns of gi (int64): geoms, bodies, the bodies' root bodies (subtree_com),
+# free joints and their first dofs, flags, pair index
+I_G1, I_G2, I_B1, I_B2, I_ROOT1, I_ROOT2, I_JNT1, I_JNT2, I_DOF1, I_DOF2, I_PLANE, I_FREE2, I_PAIR = range(13)
+NGI = 13
+# columns of gf (float64): radii [m] (R2 nan: plane), inverse masses [1/kg] (0: fixed body 2),
+# first-step a_ext [m/s^2] (3), inverse principal inertias of bodies 1 and 2 [1/(kg m^2)] (3 each)
+F_R1, F_R2, F_INV_M1, F_INV_M2, F_A0, F_INVI1, F_INVI2 = 0, 1, 2, 3, 4, 7, 10
+NGF = 13
+
+#: error codes of free_kinematics (the adapter then calls the numpy detection, which raises)
+ERR_NONE, ERR_NONFINITE, ERR_COINCIDENT = 0, 1, 2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _nonneg(v):
+    """np.maximum(v, 0.0) (nan stays nan)."""
+    return 0.0 if v < 0.0 else v
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _iinv(R, i, j, iI0, iI1, iI2):
+    """(R diag(1/I) R^T)_ij as (R * (1/I)) @ R^T sums it (R row-major (9,))."""
+    return ((R[3 * i] * iI0) * R[3 * j] + (R[3 * i + 1] * iI1) * R[3 * j + 1]) + (R[3 * i + 2] * iI2) * R[3 * j + 2]
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _inverse_inertia(W, k, R, iI0, iI1, iI2, r0, r1, r2, inv_m, add):
+    """W[k] (+)= 1/m Id - [r]x I^-1 [r]x with I^-1 = R diag(1/I) R^T (R
+    row-major (9,), 1/I = iI): the products of the numpy path's matmuls
+    (R * (1/I)) @ R^T, [r]x @ I^-1, (.) @ [r]x, without the terms with
+    the zeros of [r]x (adding an exact zero changes nothing)."""
+    I00, I01, I02 = _iinv(R, 0, 0, iI0, iI1, iI2), _iinv(R, 0, 1, iI0, iI1, iI2), _iinv(R, 0, 2, iI0, iI1, iI2)
+    I10, I11, I12 = _iinv(R, 1, 0, iI0, iI1, iI2), _iinv(R, 1, 1, iI0, iI1, iI2), _iinv(R, 1, 2, iI0, iI1, iI2)
+    I20, I21, I22 = _iinv(R, 2, 0, iI0, iI1, iI2), _iinv(R, 2, 1, iI0, iI1, iI2), _iinv(R, 2, 2, iI0, iI1, iI2)
+    # A = [r]x I^-1, rows of [r]x: (0, -r2, r1), (r2, 0, -r0), (-r1, r0, 0)
+    A00, A01, A02 = -r2 * I10 + r1 * I20, -r2 * I11 + r1 * I21, -r2 * I12 + r1 * I22
+    A10, A11, A12 = r2 * I00 + -r0 * I20, r2 * I01 + -r0 * I21, r2 * I02 + -r0 * I22
+    A20, A21, A22 = -r1 * I00 + r0 * I10, -r1 * I01 + r0 * I11, -r1 * I02 + r0 * I12
+    # B = A [r]x, columns of [r]x: (0, r2, -r1), (-r2, 0, r0), (r1, -r0, 0); W = 1/m Id - B
+    B00, B01, B02 = A01 * r2 + A02 * -r1, A00 * -r2 + A02 * r0, A00 * r1 + A01 * -r0
+    B10, B11, B12 = A11 * r2 + A12 * -r1, A10 * -r2 + A12 * r0, A10 * r1 + A11 * -r0
+    B20, B21, B22 = A21 * r2 + A22 * -r1, A20 * -r2 + A22 * r0, A20 * r1 + A21 * -r0
+    if add:
+        W[k, 0, 0] += inv_m - B00
+        W[k, 0, 1] += -B01
+        W[k, 0, 2] += -B02
+        W[k, 1, 0] += -B10
+        W[k, 1, 1] += inv_m - B11
+        W[k, 1, 2] += -B12
+        W[k, 2, 0] += -B20
+        W[k, 2, 1] += -B21
+        W[k, 2, 2] += inv_m - B22
+    else:
+        W[k, 0, 0] = inv_m - B00
+        W[k, 0, 1] = -B01
+        W[k, 0, 2] = -B02
+        W[k, 1, 0] = -B10
+        W[k, 1, 1] = inv_m - B11
+        W[k, 1, 2] = -B12
+        W[k, 2, 0] = -B20
+        W[k, 2, 1] = -B21
+        W[k, 2, 2] = inv_m - B22
+
+
+@njit(cache=True, error_model="numpy")
+def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, ximat, required,
+                    last_v, last_dv, have_last, dt, factor, coincident_rtol):
+    """Kinematics of every pair of the group and the rows of its candidates.
+
+    gi, gf: the group's constants (module docstring); MjData arrays as they
+    are; required (P,) bool; last_v, last_dv (P, 3), have_last (P,): the
+    a_ext state, updated for every pair of the group; dt [s]; factor: the
+    adapter's CANDIDATE_FACTOR; coincident_rtol: engines._geometry's.
+
+    Returns (err, pair (n,), x (n,), normal, point, v_rel, v_com_rel (n, 3),
+    W, W_com (n, 3, 3), a_ext (n, 3), p1, p2 (k, 3)): the n candidates in
+    group order, and every pair's contact points on body 1 and body 2. err
+    != ERR_NONE: a state the numpy detection refuses (nothing updated).
+    """
+    k = gi.shape[0]
+    pair = np.empty(k, np.int64)
+    x = np.empty(k)
+    nrm = np.empty((k, 3))
+    point = np.empty((k, 3))
+    v_rel = np.empty((k, 3))
+    v_com = np.empty((k, 3))
+    W = np.empty((k, 3, 3))
+    W_com = np.zeros((k, 3, 3))
+    a_ext = np.empty((k, 3))
+    p1 = np.empty((k, 3))
+    p2 = np.empty((k, 3))
+    xs = np.empty(k)
+    ns = np.empty((k, 3))
+    # detection first, for all pairs: refuse before changing any state
+    for g in range(k):
+        c = geom_xpos[gi[g, I_G1]]
+        o = geom_xpos[gi[g, I_G2]]
+        R = gf[g, F_R1]
+        if not (np.isfinite(c[0]) and np.isfinite(c[1]) and np.isfinite(c[2])
+                and np.isfinite(o[0]) and np.isfinite(o[1]) and np.isfinite(o[2])):
+            return ERR_NONFINITE, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
+                W_com[:0], a_ext[:0], p1, p2
+        if gi[g, I_PLANE]:
+            mat = geom_xmat[gi[g, I_G2]]
+            u0, u1, u2 = mat[2], mat[5], mat[8]
+            if not (np.isfinite(u0) and np.isfinite(u1) and np.isfinite(u2)):
+                return ERR_NONFINITE, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
+                    W_com[:0], a_ext[:0], p1, p2
+            ln = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+            if not ln > 0.0:
+                return ERR_NONFINITE, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
+                    W_com[:0], a_ext[:0], p1, p2
+            n0, n1, n2 = u0 / ln, u1 / ln, u2 / ln
+            dist = (c[0] - o[0]) * n0 + (c[1] - o[1]) * n1 + (c[2] - o[2]) * n2
+            xx = R - dist
+        else:
+            R2 = gf[g, F_R2]
+            e0, e1, e2 = c[0] - o[0], c[1] - o[1], c[2] - o[2]
+            dist = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+            if dist <= coincident_rtol * (R + R2):
+                return ERR_COINCIDENT, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
+                    W_com[:0], a_ext[:0], p1, p2
+            n0, n1, n2 = e0 / dist, e1 / dist, e2 / dist
+            xx = R + R2 - dist
+        xs[g] = xx
+        ns[g, 0], ns[g, 1], ns[g, 2] = n0, n1, n2
+        # Detection.of_sphere: body 1's surface point at the overlap's middle, body 2's across the gap
+        s1 = R - 0.5 * (xx if xx > 0.0 else 0.0)
+        s2 = xx if xx < 0.0 else 0.0
+        for i in range(3):
+            q1 = c[i] - s1 * ns[g, i]
+            p1[g, i] = q1
+            p2[g, i] = q1 + s2 * ns[g, i]
+    n = 0
+    for g in range(k):
+        b1, b2 = gi[g, I_B1], gi[g, I_B2]
+        c1c = subtree_com[gi[g, I_ROOT1]]
+        c2c = subtree_com[gi[g, I_ROOT2]]
+        w1, w2 = cvel[b1], cvel[b2]  # angular (0:3), linear at the subtree com (3:6)
+        d10, d11, d12 = p1[g, 0] - c1c[0], p1[g, 1] - c1c[1], p1[g, 2] - c1c[2]
+        d20, d21, d22 = p2[g, 0] - c2c[0], p2[g, 1] - c2c[1], p2[g, 2] - c2c[2]
+        vr0 = (w1[3] + (w1[1] * d12 - w1[2] * d11)) - (w2[3] + (w2[1] * d22 - w2[2] * d21))
+        vr1 = (w1[4] + (w1[2] * d10 - w1[0] * d12)) - (w2[4] + (w2[2] * d20 - w2[0] * d22))
+        vr2 = (w1[5] + (w1[0] * d11 - w1[1] * d10)) - (w2[5] + (w2[0] * d21 - w2[1] * d20))
+        p = gi[g, I_PAIR]
+        if have_last[p]:
+            a0 = (vr0 - last_v[p, 0] - last_dv[p, 0]) / dt
+            a1 = (vr1 - last_v[p, 1] - last_dv[p, 1]) / dt
+            a2 = (vr2 - last_v[p, 2] - last_dv[p, 2]) / dt
+        else:
+            a0, a1, a2 = gf[g, F_A0], gf[g, F_A0 + 1], gf[g, F_A0 + 2]
+        last_v[p, 0], last_v[p, 1], last_v[p, 2] = vr0, vr1, vr2
+        last_dv[p, 0], last_dv[p, 1], last_dv[p, 2] = 0.0, 0.0, 0.0
+        have_last[p] = True
+        n0, n1, n2 = ns[g, 0], ns[g, 1], ns[g, 2]
+        xd = -(vr0 * n0 + vr1 * n1 + vr2 * n2)
+        xdd = -(a0 * n0 + a1 * n1 + a2 * n2)
+        reach = factor * (_nonneg(xd) * dt + 0.5 * _nonneg(xdd) * dt * dt)  # closing_distance
+        if not (xs[g] > -reach or required[p]):
+            continue
+        pair[n] = p
+        x[n] = xs[g]
+        for i in range(3):
+            nrm[n, i] = ns[g, i]
+            point[n, i] = 0.5 * (p1[g, i] + p2[g, i])
+        v_rel[n, 0], v_rel[n, 1], v_rel[n, 2] = vr0, vr1, vr2
+        a_ext[n, 0], a_ext[n, 1], a_ext[n, 2] = a0, a1, a2
+        xi1, xi2 = xipos[b1], xipos[b2]
+        _inverse_inertia(W, n, ximat[b1], gf[g, F_INVI1], gf[g, F_INVI1 + 1], gf[g, F_INVI1 + 2],
+                         p1[g, 0] - xi1[0], p1[g, 1] - xi1[1], p1[g, 2] - xi1[2], gf[g, F_INV_M1], False)
+        if gi[g, I_FREE2]:
+            _inverse_inertia(W, n, ximat[b2], gf[g, F_INVI2], gf[g, F_INVI2 + 1], gf[g, F_INVI2 + 2],
+                             p2[g, 0] - xi2[0], p2[g, 1] - xi2[1], p2[g, 2] - xi2[2], gf[g, F_INV_M2], True)
+        wc = gf[g, F_INV_M1] + gf[g, F_INV_M2]
+        W_com[n, 0, 0], W_com[n, 1, 1], W_com[n, 2, 2] = wc, wc, wc
+        d10, d11, d12 = xi1[0] - c1c[0], xi1[1] - c1c[1], xi1[2] - c1c[2]
+        d20, d21, d22 = xi2[0] - c2c[0], xi2[1] - c2c[1], xi2[2] - c2c[2]
+        v_com[n, 0] = (w1[3] + (w1[1] * d12 - w1[2] * d11)) - (w2[3] + (w2[1] * d22 - w2[2] * d21))
+        v_com[n, 1] = (w1[4] + (w1[2] * d10 - w1[0] * d12)) - (w2[4] + (w2[2] * d20 - w2[0] * d22))
+        v_com[n, 2] = (w1[5] + (w1[0] * d11 - w1[1] * d10)) - (w2[5] + (w2[0] * d21 - w2[1] * d20))
+        n += 1
+    return ERR_NONE, pair[:n], x[:n], nrm[:n], point[:n], v_rel[:n], v_com[:n], W[:n], W_com[:n], a_ext[:n], \
+        p1, p2
+
+
+@njit(cache=True, error_model="numpy")
+def held(pair, force, active, settled, t_onset, tau_est, t_next, settle_after, steps_min, dt):
+    """(hit (n,), keep (n,), number of hit rows, number of hit rows not kept):
+    the rows with a nonzero force, and those of them whose force is held
+    into the next step (:func:`engines.mujoco.adapter.held_forces`)."""
+    n = pair.shape[0]
+    hit = np.empty(n, np.bool_)
+    keep = np.empty(n, np.bool_)
+    n_hit = 0
+    n_kept = 0
+    for r in range(n):
+        h = force[r, 0] != 0.0 or force[r, 1] != 0.0 or force[r, 2] != 0.0
+        p = pair[r]
+        hit[r] = h
+        keep[r] = h and active[p] and (settled[p] or (t_next - t_onset[p]) > settle_after * tau_est[p]
+                                       or tau_est[p] >= steps_min * dt)
+        n_hit += h
+        n_kept += keep[r]
+    return hit, keep, n_hit, n_hit - n_kept
+
+
+@njit(cache=True, error_model="numpy")
+def free_forces(gi, group_of, pair, force, hit, keep, only_unheld, p1, p2, xipos):
+    """What :func:`apply` adds for the rows of the group's pairs among
+    ``pair`` (n,) (group position group_of[pair], -1: not in the group)
+    with a force (``hit`` (n,)), and if ``only_unheld`` of those not held
+    (``keep`` (n,)); forces on body 1 ``force`` (n, 3) [N]. Returns (bodies
+    (m, 3) int64 rows [body, free joint, first dof], F (m, 3) [N], r (m, 3)
+    [m]): first every body 1 (+F), then every free body 2 (-F), each at its
+    contact point, the lever arm r from its centre of mass in world axes
+    (held fixed over the step)."""
+    n = pair.shape[0]
+    m = 0
+    for r in range(n):
+        g = group_of[pair[r]]
+        if g >= 0 and hit[r] and not (only_unheld and keep[r]):
+            m += 1 + (gi[g, I_FREE2] != 0)
+    bodies = np.empty((m, 3), np.int64)
+    F = np.empty((m, 3))
+    arm = np.empty((m, 3))
+    j = 0
+    for side in range(2):
+        for r in range(n):
+            g = group_of[pair[r]]
+            if g < 0 or not hit[r] or (only_unheld and keep[r]) or (side == 1 and not gi[g, I_FREE2]):
+                continue
+            b = gi[g, I_B1 + side]
+            bodies[j, 0], bodies[j, 1], bodies[j, 2] = b, gi[g, I_JNT1 + side], gi[g, I_DOF1 + side]
+            pt = p1[g] if side == 0 else p2[g]
+            for i in range(3):
+                F[j, i] = force[r, i] if side == 0 else -force[r, i]
+                arm[j, i] = pt[i] - xipos[b, i]
+            j += 1
+    return bodies, F, arm
+
+
+@njit(cache=True, error_model="numpy")
+def apply(q, xipos, xanchor, xmat, bodies, F, r):
+    """Add the forces F (m, 3) [N] at the points xipos[body] + r of the rows
+    of ``bodies`` (free_forces) to the generalised force q (nv,): F on the
+    linear dofs, (anchor-to-point x F) in body axes on the angular ones."""
+    for j in range(bodies.shape[0]):
+        b, jn, a = bodies[j, 0], bodies[j, 1], bodies[j, 2]
+        pos, anc, R = xipos[b], xanchor[jn], xmat[b]
+        e0 = pos[0] + r[j, 0] - anc[0]
+        e1 = pos[1] + r[j, 1] - anc[1]
+        e2 = pos[2] + r[j, 2] - anc[2]
+        f0, f1, f2 = F[j, 0], F[j, 1], F[j, 2]
+        c0 = e1 * f2 - e2 * f1
+        c1 = e2 * f0 - e0 * f2
+        c2 = e0 * f1 - e1 * f0
+        q[a] += f0
+        q[a + 1] += f1
+        q[a + 2] += f2
+        for i in range(3):  # xmat^T (e x F)
+            q[a + 3 + i] += (R[i] * c0 + R[3 + i] * c1) + R[6 + i] * c2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _moved(dq, a):
+    for i in range(6):
+        if dq[a + i] != 0.0:
+            return True
+    return False
+
+
+@njit(cache=True, error_model="numpy")
+def velocity_change(gi, dq, xmat, xanchor, p1, p2, last_dv):
+    """last_dv[pair] = J_p dq for the group's pairs whose bodies moved (dq
+    (nv,) the change of the generalised velocities), each body at its own
+    contact point: v(point) = dq_lin + (xmat dq_ang) x (point - anchor)."""
+    for g in range(gi.shape[0]):
+        free2 = gi[g, I_FREE2] != 0
+        if not (_moved(dq, gi[g, I_DOF1]) or (free2 and _moved(dq, gi[g, I_DOF2]))):
+            continue
+        o0, o1, o2 = 0.0, 0.0, 0.0
+        for side in range(2):
+            if side == 1 and not free2:
+                break
+            b, a = gi[g, I_B1 + side], gi[g, I_DOF1 + side]
+            R, anc = xmat[b], xanchor[gi[g, I_JNT1 + side]]
+            pt = p1[g] if side == 0 else p2[g]
+            w0 = (R[0] * dq[a + 3] + R[1] * dq[a + 4]) + R[2] * dq[a + 5]
+            w1 = (R[3] * dq[a + 3] + R[4] * dq[a + 4]) + R[5] * dq[a + 5]
+            w2 = (R[6] * dq[a + 3] + R[7] * dq[a + 4]) + R[8] * dq[a + 5]
+            e0, e1, e2 = pt[0] - anc[0], pt[1] - anc[1], pt[2] - anc[2]
+            sign = 1.0 if side == 0 else -1.0
+            o0 += sign * (dq[a] + (w1 * e2 - w2 * e1))
+            o1 += sign * (dq[a + 1] + (w2 * e0 - w0 * e2))
+            o2 += sign * (dq[a + 2] + (w0 * e1 - w1 * e0))
+        p = gi[g, I_PAIR]
+        last_dv[p, 0], last_dv[p, 1], last_dv[p, 2] = o0, o1, o2
+
+
+@njit(cache=True, error_model="numpy")
+def held_dv(last_dv, pair, keep, W, force, dt):
+    """last_dv[pair] += W P, P = force dt, for the held rows ``keep`` (the
+    pair's own held force, left out of its a_ext like the others')."""
+    for r in range(pair.shape[0]):
+        if not keep[r]:
+            continue
+        p = pair[r]
+        P0, P1, P2 = force[r, 0] * dt, force[r, 1] * dt, force[r, 2] * dt
+        for i in range(3):
+            last_dv[p, i] += (W[r, i, 0] * P0 + W[r, i, 1] * P1) + W[r, i, 2] * P2
