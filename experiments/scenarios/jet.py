@@ -776,14 +776,15 @@ class _ImpactBuffer:
                                          for k in JetAggregates.COLUMNS})
 
 
-@dataclass
+@dataclass(slots=True)
 class _Emission:
-    """One particle leaving the nozzle: time [s], class, start [m] (3,), velocity [m/s] (3,)."""
+    """One particle leaving the nozzle: time [s], class, start [m] and
+    velocity [m/s] (3-tuples of floats)."""
 
     t: float
     cls: int
-    p: np.ndarray
-    v: np.ndarray
+    p: tuple[float, float, float]
+    v: tuple[float, float, float]
     waited: bool = False
     blocked: bool = False
 
@@ -800,8 +801,7 @@ class Emitter:
     inverse of the classes' cumulative probabilities, as
     ``Generator.choice`` with ``p``), standard normals until one lies within
     SPEED_TRUNCATION_SD (speed_sd > 0), and four uniforms (cone angle and
-    azimuth, exit radius and azimuth). Scalar draws and float arithmetic:
-    about 3 us per emission."""
+    azimuth, exit radius and azimuth). Scalar draws and float arithmetic."""
 
     def __init__(self, spec: JetSpec, seed):
         self.spec = spec
@@ -818,19 +818,21 @@ class Emitter:
         self._axis = tuple(nz.direction)
         self._b1, self._b2 = tuple(self.e1.tolist()), tuple(self.e2.tolist())
         self._cos_half = math.cos(math.radians(nz.half_angle))
+        self._r_exit = 0.5 * nz.diameter
+        self._exit = tuple(nz.position)
 
     def shift(self, delay: float) -> None:
         """Delay every later emission by ``delay`` [s]."""
         self._offset += float(delay)
 
     def next(self) -> _Emission:
-        sp, nz, rng = self.spec.particles, self.spec.nozzle, self.rng
+        sp, rng = self.spec.particles, self.rng
         if sp.arrival == "uniform":
             t = (self.count + 0.5) / sp.feed_rate + self._offset
         else:
             self._t += rng.exponential(1.0 / sp.feed_rate)
             t = self._t + self._offset
-        cls = bisect.bisect_right(self._cdf, rng.random()) if len(sp.radii) > 1 else 0
+        cls = bisect.bisect_right(self._cdf, rng.random()) if len(self._cdf) > 1 else 0
         v = sp.speed_mean
         if sp.speed_sd > 0:
             while True:
@@ -838,19 +840,18 @@ class Emitter:
                 if abs(z) <= SPEED_TRUNCATION_SD:
                     break
             v = sp.speed_mean + z * sp.speed_sd
-        cos_a = 1.0 - rng.random() * (1.0 - self._cos_half)
+        u1, u2, u3, u4 = rng.random(4).tolist()  # the same stream as four scalar draws
+        cos_a = 1.0 - u1 * (1.0 - self._cos_half)
         sin_a = math.sqrt(max(0.0, 1.0 - cos_a * cos_a))
-        phi = 2.0 * math.pi * rng.random()
-        cp, sp_ = math.cos(phi), math.sin(phi)
-        a, b1, b2 = self._axis, self._b1, self._b2
-        d = [cos_a * a[k] + sin_a * (cp * b1[k] + sp_ * b2[k]) for k in range(3)]
-        r = 0.5 * nz.diameter * math.sqrt(rng.random())
-        psi = 2.0 * math.pi * rng.random()
-        cq, sq = math.cos(psi), math.sin(psi)
-        pos = nz.position
-        p = np.array([pos[k] + r * (cq * b1[k] + sq * b2[k]) for k in range(3)])
+        phi = 2.0 * math.pi * u2
+        r = self._r_exit * math.sqrt(u3)
+        psi = 2.0 * math.pi * u4
+        cp, sp_, cq, sq = math.cos(phi), math.sin(phi), math.cos(psi), math.sin(psi)
+        (a0, a1, a2), (b0, b1, b2), (c0, c1, c2), (x0, x1, x2) = self._axis, self._b1, self._b2, self._exit
         self.count += 1
-        return _Emission(t, cls, p, np.array([v * d[k] for k in range(3)]))
+        return _Emission(t, cls, (x0 + r * (cq * b0 + sq * c0), x1 + r * (cq * b1 + sq * c1), x2 + r * (cq * b2 + sq * c2)),
+                         (v * (cos_a * a0 + sin_a * (cp * b0 + sp_ * c0)), v * (cos_a * a1 + sin_a * (cp * b1 + sp_ * c1)),
+                          v * (cos_a * a2 + sin_a * (cp * b2 + sp_ * c2))))
 
 
 @dataclass
@@ -1055,8 +1056,8 @@ class JetPool(abc.ABC):
                 if self.spec.particle_particle:
                     self._launch(launch)  # _clear reads the engine's centres
                     launch = []
-                    p = e.p + e.v * late + 0.5 * self._g * late * late
-                    v = e.v + self._g * late
+                    p = np.asarray(e.p) + np.asarray(e.v) * late + 0.5 * self._g * late * late
+                    v = np.asarray(e.v) + self._g * late
                     if not self._clear(p, v, float(self.spec.particles.radii[e.cls])):
                         if not e.blocked:
                             self.counts.blocked += 1
