@@ -50,24 +50,22 @@ def rotations(q):
     return R
 
 
-@njit(cache=True, inline="always")
-def _add_free_W(W, R, inv_m, inv_I, r):
-    """W += 1/m Id - [r]x I^-1 [r]x with I^-1 = R diag(inv_I) R^T (3, 3)."""
-    Iinv = np.empty((3, 3))
+@njit(cache=True)
+def _add_free_W(W, R, inv_m, inv_I, r, Iinv, T):
+    """W += 1/m Id - [r]x I^-1 [r]x (3, 3), I^-1 = R diag(inv_I) R^T; Iinv, T: (3, 3) scratch."""
     for a in range(3):
         for b in range(3):
             Iinv[a, b] = R[a, 0] * inv_I[0] * R[b, 0] + R[a, 1] * inv_I[1] * R[b, 1] + R[a, 2] * inv_I[2] * R[b, 2]
-    rx = np.zeros((3, 3))
-    rx[0, 1], rx[0, 2] = -r[2], r[1]
-    rx[1, 0], rx[1, 2] = r[2], -r[0]
-    rx[2, 0], rx[2, 1] = -r[1], r[0]
-    T = np.empty((3, 3))
+    # T = [r]x I^-1, rows of [r]x: (0, -r2, r1), (r2, 0, -r0), (-r1, r0, 0)
+    for b in range(3):
+        T[0, b] = -r[2] * Iinv[1, b] + r[1] * Iinv[2, b]
+        T[1, b] = r[2] * Iinv[0, b] - r[0] * Iinv[2, b]
+        T[2, b] = -r[1] * Iinv[0, b] + r[0] * Iinv[1, b]
+    # W -= T [r]x, columns of [r]x: (0, r2, -r1), (-r2, 0, r0), (r1, -r0, 0)
     for a in range(3):
-        for b in range(3):
-            T[a, b] = rx[a, 0] * Iinv[0, b] + rx[a, 1] * Iinv[1, b] + rx[a, 2] * Iinv[2, b]
-    for a in range(3):
-        for b in range(3):
-            W[a, b] -= T[a, 0] * rx[0, b] + T[a, 1] * rx[1, b] + T[a, 2] * rx[2, b]
+        W[a, 0] -= T[a, 1] * r[2] - T[a, 2] * r[1]
+        W[a, 1] -= -T[a, 0] * r[2] + T[a, 2] * r[0]
+        W[a, 2] -= T[a, 0] * r[1] - T[a, 1] * r[0]
         W[a, a] += inv_m
 
 
@@ -95,6 +93,8 @@ def fast_rows(f, j1, j2, s1, r1, plane, s2, size2, com, rot, v, w, b_free, inv_m
     rb = np.empty(3)
     vr = np.empty(3)
     a = np.empty(3)
+    Iinv = np.empty((3, 3))
+    T = np.empty((3, 3))
     for q in range(f.shape[0]):
         i = f[q]
         b1, b2 = j1[q], j2[q]
@@ -160,9 +160,9 @@ def fast_rows(f, j1, j2, s1, r1, plane, s2, size2, com, rot, v, w, b_free, inv_m
                 o_W[k, d, e] = 0.0
                 o_Wc[k, d, e] = 0.0
             o_Wc[k, d, d] = inv_m[b1] + inv_m[b2]
-        _add_free_W(o_W[k], rot[b1], inv_m[b1], inv_I[b1], ra)
+        _add_free_W(o_W[k], rot[b1], inv_m[b1], inv_I[b1], ra, Iinv, T)
         if b_free[b2]:
-            _add_free_W(o_W[k], rot[b2], inv_m[b2], inv_I[b2], rb)
+            _add_free_W(o_W[k], rot[b2], inv_m[b2], inv_I[b2], rb, Iinv, T)
         k += 1
     return k, OK, -1
 
