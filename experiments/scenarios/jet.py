@@ -1316,7 +1316,10 @@ def memory_profile(engine: str, spec: JetSpec, checkpoints: Sequence[int] = (200
     """Run one continuous jet and measure memory at each checkpoint (cumulative
     impacts): current and peak RSS [kB] and, with ``trace``, tracemalloc's
     traced memory [B] (slower). Returns one dict per checkpoint with impacts,
-    steps, CPU seconds and impacts per CPU second."""
+    steps, the pool's CPU seconds, impacts per CPU second since the start
+    (``impacts_per_cpu_s``: the first steps include loading or compiling the
+    engines' numba kernels) and since the previous checkpoint
+    (``interval_impacts_per_cpu_s``)."""
     import gc
     import tracemalloc
 
@@ -1325,13 +1328,17 @@ def memory_profile(engine: str, spec: JetSpec, checkpoints: Sequence[int] = (200
         tracemalloc.start()
     try:
         with make_pool(engine, spec, seed) as pool:
+            n0, c0 = 0, 0.0
             for n in checkpoints:
                 pool.run(int(n), sink=sink)
                 gc.collect()
                 cur, peak = rss_kb()
+                di, dc = pool.counts.impacts - n0, pool.cpu_s - c0
                 d = {"engine": engine, "impacts": pool.counts.impacts, "steps": pool.counts.steps,
                      "rss_kb": cur, "peak_rss_kb": peak, "cpu_s": pool.cpu_s,
-                     "impacts_per_cpu_s": pool.counts.impacts / pool.cpu_s if pool.cpu_s > 0 else None}
+                     "impacts_per_cpu_s": pool.counts.impacts / pool.cpu_s if pool.cpu_s > 0 else None,
+                     "interval_impacts_per_cpu_s": di / dc if dc > 0 else None}
+                n0, c0 = pool.counts.impacts, pool.cpu_s
                 if trace:
                     d["traced_bytes"], d["traced_peak_bytes"] = tracemalloc.get_traced_memory()
                 out.append(d)
