@@ -207,7 +207,7 @@ def test_scenes_reach_every_branch():
 
         def spy(*args):
             out = orig(*args)
-            counts.append(int(out[0].max()))
+            counts.append(out[3].size)  # bodies with several forces
             return out
 
         ad._k.body_loads = spy
@@ -215,7 +215,7 @@ def test_scenes_reach_every_branch():
             ad.step(steps)
         finally:
             ad._k.body_loads = orig
-        assert max(counts) >= 2, counts
+        assert max(counts) >= 1, counts
     ad, uids, steps = resting_spheres(True)
     with ad:
         ad.step(steps)

@@ -233,9 +233,10 @@ def add_own_dv(ph, W, P, last_dv):
 def body_loads(ph, F, point, slot, com, b_push):
     """Forces of the step per pushed body (b_push (B,): free bases; links
     and fixed bodies are the adapter's): +F (k, 3) at ``point`` (k, 3) on
-    body 1 of pairs ph, -F on body 2. Returns (count (B,), force (B, 3),
-    torque about the centre of mass (B, 3), the point of a body's only force
-    (B, 3))."""
+    body 1 of pairs ph, -F on body 2. Returns, in slot order, the bodies
+    with one force (slots (m,), force (m, 3), its point (m, 3)) and those
+    with several (slots (s,), summed force (s, 3), summed torque about the
+    centre of mass (s, 3))."""
     B = com.shape[0]
     count = np.zeros(B, np.int64)
     force = np.zeros((B, 3))
@@ -258,4 +259,28 @@ def body_loads(ph, F, point, slot, com, b_push):
             torque[j, 1] += r2 * f0 - r0 * f2
             torque[j, 2] += r0 * f1 - r1 * f0
             at[j, 0], at[j, 1], at[j, 2] = point[q, 0], point[q, 1], point[q, 2]
-    return count, force, torque, at
+    m = 0
+    s_ = 0
+    for j in range(B):
+        if count[j] == 1:
+            m += 1
+        elif count[j] > 1:
+            s_ += 1
+    one, F1, P1 = np.empty(m, np.int64), np.empty((m, 3)), np.empty((m, 3))
+    many, Fm, Tm = np.empty(s_, np.int64), np.empty((s_, 3)), np.empty((s_, 3))
+    m = 0
+    s_ = 0
+    for j in range(B):
+        if count[j] == 1:
+            one[m] = j
+            for d in range(3):
+                F1[m, d] = force[j, d]
+                P1[m, d] = at[j, d]
+            m += 1
+        elif count[j] > 1:
+            many[s_] = j
+            for d in range(3):
+                Fm[s_, d] = force[j, d]
+                Tm[s_, d] = torque[j, d]
+            s_ += 1
+    return one, F1, P1, many, Fm, Tm

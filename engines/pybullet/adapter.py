@@ -11,17 +11,25 @@ What it does each engine step (``step``):
    their world inertia, links of multibodies from pybullet's own
    ``calculateJacobian`` and ``calculateMassMatrix`` (W = J M^-1 J^T).
    Pairs of a free sphere and a plane, a fixed sphere or another free
-   sphere are done for all of them at once in numpy (detection, velocities,
-   W in closed form); box faces and links go pair by pair. Masses and
-   inertias are read once, at construction (``changeDynamics`` afterwards is
-   not seen).
+   sphere are done for all of them at once (detection, velocities, W in
+   closed form), compiled in :mod:`engines.pybullet._kernels` or, with
+   ``compiled=False``, in numpy; box faces and links go pair by pair. Masses
+   and inertias are read once, at construction (``changeDynamics``
+   afterwards is not seen).
 2. Hand the pairs that touch or may touch within the step to the contact
    manager, which integrates the law over the step and returns the
    step-averaged force.
 3. Apply it with ``applyExternalForce(..., WORLD_FRAME)`` at the contact
    point on body 1 and the opposite on body 2 (a fixed body, mass 0, takes
    none), then ``stepSimulation``. pybullet clears external forces after
-   every step, so they are applied every step.
+   every step, so they are applied every step. A free body in several
+   touching pairs takes one call: the forces' sum at its centre of mass and
+   their torque about it (``applyExternalTorque``), the same force and
+   torque pybullet makes of forces at points.
+
+Per step and body this is two reads and one force, the floor of pybullet's
+Python API (~0.5 us a call; there is no call that reads or pushes several
+bodies); the array work between them is compiled.
 
 pybullet's own response for the pairs is switched off with
 ``setCollisionFilterPair(..., enableCollision=0)``, so nothing is counted twice.
@@ -633,19 +641,16 @@ class PybulletAdapter(EngineAdapter):
         its forces at its point."""
         c = self.client
         if self.compiled:
-            count, force, torque, at = self._k.body_loads(ph.astype(np.int64), F, point, self._slot64, bodies.com,
-                                                          self._b_free)
+            one, F1, P1, many, Fm, Tm = self._k.body_loads(ph.astype(np.int64), F, point, self._slot64, bodies.com,
+                                                           self._b_free)
         else:
-            count, force, torque, at = self._body_loads(bodies, ph, F, point)
+            one, F1, P1, many, Fm, Tm = self._body_loads(bodies, ph, F, point)
         push, world = pb.applyExternalForce, pb.WORLD_FRAME
-        one = np.flatnonzero(count == 1)
         if not np.array_equal(one, self._one_cache[0]):  # mostly the same bodies step after step
             self._one_cache = (one, self._b_uid[one].tolist())
-        for u, f, p in zip(self._one_cache[1], force[one].tolist(), at[one].tolist()):
+        for u, f, p in zip(self._one_cache[1], F1.tolist(), P1.tolist()):
             push(u, -1, f, p, world, c)  # the client id positional: a keyword costs ~0.1 us a call
-        many = np.flatnonzero(count > 1)
-        for u, f, p, t in zip(self._b_uid[many].tolist(), force[many].tolist(), bodies.com[many].tolist(),
-                              torque[many].tolist()):
+        for u, f, p, t in zip(self._b_uid[many].tolist(), Fm.tolist(), bodies.com[many].tolist(), Tm.tolist()):
             push(u, -1, f, p, world, c)
             pb.applyExternalTorque(u, -1, t, world, c)
         if self._link_slots:
@@ -659,9 +664,9 @@ class PybulletAdapter(EngineAdapter):
                     push(u2, l2, [-f[0], -f[1], -f[2]], p, world, c)
 
     def _body_loads(self, bodies: _Bodies, ph, F, point):
-        """numpy :func:`engines.pybullet._kernels.body_loads`: per free body the
-        number of forces, their sum, their torque about the centre of mass and
-        the point of the last one."""
+        """numpy :func:`engines.pybullet._kernels.body_loads`: the free bodies
+        with one force (slots, force, point) and with several (slots, summed
+        force, summed torque about the centre of mass)."""
         B = len(self._body_list)
         count, force, torque, at = np.zeros(B, int), np.zeros((B, 3)), np.zeros((B, 3)), np.zeros((B, 3))
         for side, sign in ((0, 1.0), (1, -1.0)):
@@ -672,7 +677,8 @@ class PybulletAdapter(EngineAdapter):
             np.add.at(force, j, f)
             np.add.at(torque, j, _cross(p - bodies.com[j], f))
             at[j] = p
-        return count, force, torque, at
+        one, many = np.flatnonzero(count == 1), np.flatnonzero(count > 1)
+        return one, force[one], at[one], many, force[many], torque[many]
 
     def _cross_dv(self, bodies: _Bodies, ph, P, W_own) -> None:
         """Keep, for the next step's a_ext, the change of every pair's v_rel
