@@ -432,6 +432,7 @@ def kernel_law(law: ForceLaw):
     lc[K.LC_GM], lc[K.LC_RM] = law.moduli.G, g.R
     lc[K.LC_FZ] = 1.0 if law.separation == "force-zero" else 0.0
     lc[K.LC_KPMODE] = _KP_MODES[law.kp_mode]
+    lc[K.LC_SRA], lc[K.LC_SRB] = math.sqrt(g.R_a), math.sqrt(g.R_b)
     return _KERNEL_CODES[base], lc
 
 
@@ -563,6 +564,10 @@ class ContactManager:
         self.dvc_corr = z3.copy()  #: W_com J [m/s] (P, 3)
         self.body_in: list[dict | None] = [None] * P
         self._oc = np.full((P, K.NOC), np.nan)  #: onset constants per pair for the compiled kernel
+        # the kernel's scratch (it allocates nothing itself)
+        self._seen = np.zeros(P, bool)
+        self._scr_settled = (np.empty(6), np.empty((4, 3, 3)), np.empty((8, 3)), np.empty((3, 4)))
+        self._scr_rk4 = (np.empty(6), np.empty((5, NY)), np.empty((4, NY)))
 
     @property
     def active_count(self) -> int:
@@ -639,7 +644,7 @@ class ContactManager:
                           ("W", W), ("W_com", Wc), ("a_ext", a)):
             if arr.shape[0] != k:
                 raise ValueError(f"kinematics.{name} has {arr.shape[0]} rows; expected {k} (len(pair))")
-        code, row = K.check(pair, len(self.pairs), x, n, point, v, vc, W, Wc, a, self.active, self.J)
+        code, row = K.check(pair, len(self.pairs), x, n, point, v, vc, W, Wc, a, self.active, self.J, self._seen)
         if code:
             self._invalid(code, row, pair, x, n, point, v, vc, W, Wc, a)
         if k:
@@ -702,11 +707,12 @@ class ContactManager:
         fl, oc = self._fl, self._oc
         K.prelude(_KCST, p, x_eng, n, v, vc, W, Wc, a, paper, t0, dt, self.settle_rate, self.settled_path, code, lc,
                   oc, self.active, self.x, self.s, self.tau_est, self.dv_corr, self.dvc_corr, self.W_el,
-                  self.W_visc, self.Q_t, self.W_t, y, T, t_loc, in_c, settled, status, self.turned, fl, ints)
+                  self.W_visc, self.Q_t, self.W_t, y, T, t_loc, in_c, settled, status, self.turned, fl, ints,
+                  *self._scr_settled)
         for _ in range(MAX_SEGMENTS):
             info["segments"] += 1
             stopped = K.advance(_KCST, p, n, T, W, Wc, a, paper, code, lc, oc, t0, dt, self.h, y, t_loc, in_c,
-                                status, ended_by, self.turned, fl, ints)
+                                status, ended_by, self.turned, fl, ints, *self._scr_rk4)
             if not stopped:
                 break
             for r in np.flatnonzero(status == K.ST_ENDED):

@@ -38,6 +38,13 @@ import math
 import numpy as np
 from numba import njit
 
+#: Compiled without numba's reference counting (NRT): the kernel allocates
+#: nothing (scratch arrays come from the caller), and the refcounts numba
+#: otherwise keeps on every array passed or aliased per row cost more than
+#: a resting contact's whole step (measured: ~150 ns per row).
+jit = njit(cache=True, _nrt=False)
+jit_inline = njit(cache=True, _nrt=False, inline="always")
+
 # law codes
 CODE_MSF, CODE_HERTZ, CODE_KK, CODE_HC, CODE_SD = 0, 1, 2, 3, 4
 #: Onset constants each law's rows carry, in the order of the columns of oc.
@@ -45,8 +52,8 @@ ONSET_KEYS = {CODE_MSF: ("E", "eta_E", "G", "eta_Gy", "eta_Gz"), CODE_HERTZ: (),
               CODE_HC: ("chi",), CODE_SD: ("k", "c")}
 NOC = 5
 # law constants
-LC_RA, LC_RB, LC_KHA, LC_KHB, LC_MU, LC_K, LC_A, LC_GM, LC_RM, LC_FZ, LC_KPMODE = range(11)
-NLC = 11
+LC_RA, LC_RB, LC_KHA, LC_KHB, LC_MU, LC_K, LC_A, LC_GM, LC_RM, LC_FZ, LC_KPMODE, LC_SRA, LC_SRB = range(13)
+NLC = 13  # LC_SRA, LC_SRB: sqrt(R_a), sqrt(R_b)
 KP_MSF, KP_SMALL, KP_HERTZ = 0, 1, 2
 
 # layout of y, as engines._contacts
@@ -63,7 +70,7 @@ ST_DONE, ST_ONSET, ST_ENDED = 0, 1, 2
 END_FORCE, END_OVERLAP = 0, 1
 
 
-@njit(cache=True, inline="always")
+@jit_inline
 def _kp(x, R, mode):
     if mode == KP_MSF:
         r = x / R
@@ -75,11 +82,11 @@ def _kp(x, R, mode):
     return 1.0
 
 
-@njit(cache=True)
-def forces(code, lc, oc, x, xd, out):
+@jit_inline
+def forces(code, lc, oc, p, x, xd, out):
     """F_n after the separation rule, its elastic part F_n(x, 0) [N], the
     tangential stiffnesses k_y, k_z [N/m] and dampings b_y, b_z [N s/m]
-    into out[0:6]; x >= 0 [m], xd [m/s]."""
+    into out[0:6]; x >= 0 [m], xd [m/s]; onset constants oc[p]."""
     fz = lc[LC_FZ] != 0.0
     if code == CODE_MSF:
         Ra, Rb = lc[LC_RA], lc[LC_RB]
@@ -87,21 +94,22 @@ def forces(code, lc, oc, x, xd, out):
         kpa = _kp(x, Ra, mode)
         kpb = kpa if Rb == Ra else _kp(x, Rb, mode)
         sx = math.sqrt(x)
-        base = (kpa * math.sqrt(Ra) + kpb * math.sqrt(Rb)) * sx
-        el = (2.0 / 3.0) * oc[0] * x
-        F = base * (2.0 * oc[1] * xd + el)
-        P_bx = lc[LC_KHA] * x + 2.0 * kpb * math.sqrt(Rb * x)
-        P_ax = lc[LC_KHB] * x + 2.0 * kpa * math.sqrt(Ra * x)
+        sra, srb = lc[LC_SRA], lc[LC_SRB]
+        base = (kpa * sra + kpb * srb) * sx
+        el = (2.0 / 3.0) * oc[p, 0] * x
+        F = base * (2.0 * oc[p, 1] * xd + el)
+        P_bx = lc[LC_KHA] * x + 2.0 * kpb * (srb * sx)
+        P_ax = lc[LC_KHB] * x + 2.0 * kpa * (sra * sx)
         out[1] = base * el
-        out[2] = oc[2] * P_bx
-        out[3] = oc[2] * P_ax
-        out[4] = oc[3] * P_bx
-        out[5] = oc[4] * P_ax
+        out[2] = oc[p, 2] * P_bx
+        out[3] = oc[p, 2] * P_ax
+        out[4] = oc[p, 3] * P_bx
+        out[5] = oc[p, 4] * P_ax
     else:
         K = lc[LC_K]
         if code == CODE_SD:
-            el = oc[0] * x
-            F = el + oc[1] * xd
+            el = oc[p, 0] * x
+            F = el + oc[p, 1] * xd
         else:
             el = K * x * math.sqrt(x)
             if code == CODE_HERTZ:
@@ -109,7 +117,7 @@ def forces(code, lc, oc, x, xd, out):
             elif code == CODE_KK:
                 F = K * math.sqrt(x) * (x + 1.5 * lc[LC_A] * xd)
             else:
-                F = el * (1.0 + oc[0] * xd)
+                F = el * (1.0 + oc[p, 0] * xd)
         out[1] = el
         km = 8.0 * lc[LC_GM] * math.sqrt(lc[LC_RM] * x)
         out[2] = km
@@ -119,26 +127,26 @@ def forces(code, lc, oc, x, xd, out):
     out[0] = max(F, 0.0) if fz else F
 
 
-@njit(cache=True)
-def indicator(code, lc, oc, x, xd):
+@jit
+def indicator(code, lc, oc, p, x, xd):
     """The law's separation indicator B(x, x') (force-zero: B < 0 ends the contact)."""
     if code == CODE_MSF:
-        return 2.0 * oc[1] * xd + (2.0 / 3.0) * oc[0] * x
+        return 2.0 * oc[p, 1] * xd + (2.0 / 3.0) * oc[p, 0] * x
     if code == CODE_HERTZ:
         return x
     if code == CODE_KK:
         return x + 1.5 * lc[LC_A] * xd
     if code == CODE_HC:
-        return 1.0 + oc[0] * xd
-    return oc[0] * x + oc[1] * xd
+        return 1.0 + oc[p, 0] * xd
+    return oc[p, 0] * x + oc[p, 1] * xd
 
 
-@njit(cache=True)
-def rhs(code, lc, oc, n, T, W, Wc, a, paper, y, dy, buf):
+@jit
+def rhs(code, lc, oc, p, n, T, W, Wc, a, paper, y, dy, buf):
     """dy/dt of one row (NY,) as _Batch.rhs; returns (F_n, |F_t|) at y."""
     x = max(y[X], 0.0)
     xd = -(y[V] * n[0] + y[V + 1] * n[1] + y[V + 2] * n[2])
-    forces(code, lc, oc, x, xd, buf)
+    forces(code, lc, oc, p, x, xd, buf)
     Fn, Fc = buf[0], buf[1]
     vt0 = y[V] + xd * n[0]
     vt1 = y[V + 1] + xd * n[1]
@@ -186,33 +194,33 @@ def rhs(code, lc, oc, n, T, W, Wc, a, paper, y, dy, buf):
     return Fn, math.hypot(Fa, Fb)
 
 
-@njit(cache=True)
-def rk4(code, lc, oc, n, T, W, Wc, a, paper, y, h, out, work, buf):
+@jit
+def rk4(code, lc, oc, p, n, T, W, Wc, a, paper, y, h, out, work, buf):
     """One classical RK4 step of length h from y into out; returns (F_n, |F_t|) at y.
     work: (5, NY) scratch."""
     k1, k2, k3, k4, yt = work[0], work[1], work[2], work[3], work[4]
-    Fn, Ft = rhs(code, lc, oc, n, T, W, Wc, a, paper, y, k1, buf)
+    Fn, Ft = rhs(code, lc, oc, p, n, T, W, Wc, a, paper, y, k1, buf)
     for j in range(NY):
         yt[j] = y[j] + 0.5 * h * k1[j]
-    rhs(code, lc, oc, n, T, W, Wc, a, paper, yt, k2, buf)
+    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, yt, k2, buf)
     for j in range(NY):
         yt[j] = y[j] + 0.5 * h * k2[j]
-    rhs(code, lc, oc, n, T, W, Wc, a, paper, yt, k3, buf)
+    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, yt, k3, buf)
     for j in range(NY):
         yt[j] = y[j] + h * k3[j]
-    rhs(code, lc, oc, n, T, W, Wc, a, paper, yt, k4, buf)
+    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, yt, k4, buf)
     for j in range(NY):
         out[j] = y[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
     return Fn, Ft
 
 
-@njit(cache=True, inline="always")
+@jit_inline
 def _xdot(y, n):
     return -(y[V] * n[0] + y[V + 1] * n[1] + y[V + 2] * n[2])
 
 
-@njit(cache=True)
-def _gfun(kind, code, lc, oc, n, yy, xs, Bs, fz):
+@jit
+def _gfun(kind, code, lc, oc, p, n, yy, xs, Bs, fz):
     """Root functions: kind 0, x' (maximum compression); kind 1, the
     separation (x/x_s, and with force-zero min(x/x_s, B/B_s) while separating)."""
     if kind == 0:
@@ -221,12 +229,12 @@ def _gfun(kind, code, lc, oc, n, yy, xs, Bs, fz):
     if not fz:
         return gx
     xd = _xdot(yy, n)
-    gb = indicator(code, lc, oc, max(yy[X], 0.0), xd) / Bs if xd < 0 else 1.0
+    gb = indicator(code, lc, oc, p, max(yy[X], 0.0), xd) / Bs if xd < 0 else 1.0
     return min(gx, gb)
 
 
-@njit(cache=True)
-def _root(kind, code, lc, oc, n, T, W, Wc, a, paper, y0, h, lo, hi, g_lo, g_hi, xs, Bs, fz, tmp, work, buf,
+@jit
+def _root(kind, code, lc, oc, p, n, T, W, Wc, a, paper, y0, h, lo, hi, g_lo, g_hi, xs, Bs, fz, tmp, work, buf,
           root_iter, root_tol):
     """Illinois regula falsi for th in [lo, hi] with g(lo) > 0 >= g(hi), g of the
     state rk4(y0, th h); as engines._contacts._find_root for one row."""
@@ -240,8 +248,8 @@ def _root(kind, code, lc, oc, n, T, W, Wc, a, paper, y0, h, lo, hi, g_lo, g_hi, 
             return hi
         if th <= lo or th >= hi:
             th = 0.5 * (lo + hi)
-        rk4(code, lc, oc, n, T, W, Wc, a, paper, y0, th * h, tmp, work, buf)
-        gt = _gfun(kind, code, lc, oc, n, tmp, xs, Bs, fz)
+        rk4(code, lc, oc, p, n, T, W, Wc, a, paper, y0, th * h, tmp, work, buf)
+        gt = _gfun(kind, code, lc, oc, p, n, tmp, xs, Bs, fz)
         if gt > 0:
             if side == 1:
                 g_hi *= 0.5
@@ -257,7 +265,7 @@ def _root(kind, code, lc, oc, n, T, W, Wc, a, paper, y0, h, lo, hi, g_lo, g_hi, 
     return hi
 
 
-@njit(cache=True)
+@jit
 def tangent_basis(n, T):
     """t1, t2 into T (2, 3) with t1 x t2 = n, as engines._contacts._tangent_basis."""
     if abs(n[0]) < 0.9:
@@ -276,15 +284,14 @@ def tangent_basis(n, T):
     T[1, 2] = n[0] * t1 - n[1] * t0
 
 
-@njit(cache=True)
-def _solve3(A, b, out):
-    """out = A^-1 b for a 3x3 A (Gaussian elimination with partial pivoting);
-    returns False when A is singular."""
-    M = np.empty((3, 4))
+@jit
+def _solve3(A3, ia, B, ib, iout, M):
+    """B[iout] = A3[ia]^-1 B[ib] for a 3x3 matrix (Gaussian elimination with
+    partial pivoting, M (3, 4) scratch); returns False when it is singular."""
     for i in range(3):
         for j in range(3):
-            M[i, j] = A[i, j]
-        M[i, 3] = b[i]
+            M[i, j] = A3[ia, i, j]
+        M[i, 3] = B[ib, i]
     for c in range(3):
         piv = c
         for r in range(c + 1, 3):
@@ -302,15 +309,15 @@ def _solve3(A, b, out):
     for i in range(2, -1, -1):
         s = M[i, 3]
         for j in range(i + 1, 3):
-            s -= M[i, j] * out[j]
-        out[i] = s / M[i, i]
+            s -= M[i, j] * B[iout, j]
+        B[iout, i] = s / M[i, i]
     return True
 
 
-@njit(cache=True)
+@jit
 def prelude(cst, pairs, x_eng, n, v, vc, W, Wc, a, paper, t0, dt, settle_rate, settled_path, code, lc, oc,
             active, x_state, s_state, tau_est, dv_corr, dvc_corr, W_el, W_visc, Q_t, W_t,
-            y, T, t_loc, in_c, settled, status, turned, fl, ints):
+            y, T, t_loc, in_c, settled, status, turned, fl, ints, buf, m33, v3, M34):
     """Step start for rows 0..k-1 (pair index pairs[r]): y, T, in_c, and the
     settled path for the resting rows (its record bookkeeping into the per-pair
     arrays fl (NF, P) and turned (P,), see settled_row). oc (P, NOC): onset
@@ -350,8 +357,8 @@ def prelude(cst, pairs, x_eng, n, v, vc, W, Wc, a, paper, t0, dt, settle_rate, s
         settled[r] = False
         status[r] = ST_DONE
         if settled_path and settle and x0 > 0:
-            if settled_row(cst, p, code, lc, oc[p], nr, T[r], W[r], Wc[r], a[r], paper[r], t0, dt, y[r], turned,
-                           fl, ints):
+            if settled_row(cst, r, p, code, lc, oc, n, T, W, Wc, a, paper[r], t0, dt, y, turned, fl, ints, buf, m33,
+                           v3, M34):
                 settled[r] = True
                 t_loc[r] = dt
 
@@ -361,75 +368,68 @@ F_TAU1, F_XTURN, F_XMAX, F_WELC, F_WVIC, F_FMAX, F_XATF, F_FMIN, F_FMAXR, F_TONS
 NF = 11
 
 
-@njit(cache=True)
-def settled_row(cst, p, code, lc, oc, n, T, W, Wc, a, paper, t0, dt, y, turned, fl, ints):
+@jit_inline
+def settled_row(cst, r, p, code, lc, oc, n, T, W, Wc, a, paper, t0, dt, y, turned, fl, ints, buf, m33, v3, M34):
     """One backward-Euler step of the law over the whole engine step for a
     resting row (ContactManager._settled for one row); returns True when it
-    took it (y written), False to leave the row to sub-cycling."""
-    buf = np.empty(6)
-    x0 = y[X]
+    took it (y written), False to leave the row to sub-cycling. Row r of
+    the (k, ...) arrays, pair p of the per-pair ones (indexed, not sliced:
+    a slice costs more than this whole step). buf (6,), m33 (4, 3, 3),
+    v3 (8, 3), M34 (3, 4): scratch."""
+    x0 = y[r, X]
     nWn = 0.0
     for i in range(3):
         for j in range(3):
-            nWn += n[i] * W[i, j] * n[j]
-    forces(code, lc, oc, x0, 0.0, buf)
+            nWn += n[r, i] * W[r, i, j] * n[r, j]
+    forces(code, lc, oc, p, x0, 0.0, buf)
     F_el = buf[0]
     vx = math.sqrt(max(F_el, 0.0) * x0 * nWn)
-    vn = y[V] * n[0] + y[V + 1] * n[1] + y[V + 2] * n[2]
+    vn = y[r, V] * n[r, 0] + y[r, V + 1] * n[r, 1] + y[r, V + 2] * n[r, 2]
     if not (abs(vn) <= cst[C_SPEED] * vx and vx > 0):
         return False
     Ww = Wc if paper else W
     wo = VC if paper else V
     # B = [n; t1; t2]; M = [n^T W; T Ww] B^T
-    Bm = np.empty((3, 3))
     for j in range(3):
-        Bm[0, j] = n[j]
-        Bm[1, j] = T[0, j]
-        Bm[2, j] = T[1, j]
-    Sel = np.zeros((3, 3))
+        m33[0, 0, j] = n[r, j]
+        m33[0, 1, j] = T[r, 0, j]
+        m33[0, 2, j] = T[r, 1, j]
+    m33[1, :] = 0.0
     for j in range(3):
         for i in range(3):
-            Sel[0, j] += n[i] * W[i, j]
-            Sel[1, j] += T[0, i] * Ww[i, j]
-            Sel[2, j] += T[1, i] * Ww[i, j]
-    M = np.zeros((3, 3))
+            m33[1, 0, j] += n[r, i] * W[r, i, j]
+            m33[1, 1, j] += T[r, 0, i] * Ww[r, i, j]
+            m33[1, 2, j] += T[r, 1, i] * Ww[r, i, j]
+    m33[2, :] = 0.0
     for i in range(3):
         for j in range(3):
             for q in range(3):
-                M[i, j] += Sel[i, q] * Bm[j, q]
-    z_free = np.empty(3)
-    z = np.empty(3)
-    z_free[0] = (y[V] + dt * a[0]) * n[0] + (y[V + 1] + dt * a[1]) * n[1] + (y[V + 2] + dt * a[2]) * n[2]
-    z[0] = vn
+                m33[2, i, j] += m33[1, i, q] * m33[0, j, q]
+    v3[0, 0] = (y[r, V] + dt * a[r, 0]) * n[r, 0] + (y[r, V + 1] + dt * a[r, 1]) * n[r, 1] + (y[r, V + 2] + dt * a[r, 2]) * n[r, 2]
+    v3[1, 0] = vn
     for q in range(2):
-        z_free[q + 1] = ((y[wo] + dt * a[0]) * T[q, 0] + (y[wo + 1] + dt * a[1]) * T[q, 1]
-                         + (y[wo + 2] + dt * a[2]) * T[q, 2])
-        z[q + 1] = y[wo] * T[q, 0] + y[wo + 1] * T[q, 1] + y[wo + 2] * T[q, 2]
-    s2a = T[0, 0] * y[S] + T[0, 1] * y[S + 1] + T[0, 2] * y[S + 2]
-    s2b = T[1, 0] * y[S] + T[1, 1] * y[S + 1] + T[1, 2] * y[S + 2]
+        v3[0, q + 1] = ((y[r, wo] + dt * a[r, 0]) * T[r, q, 0] + (y[r, wo + 1] + dt * a[r, 1]) * T[r, q, 1]
+                         + (y[r, wo + 2] + dt * a[r, 2]) * T[r, q, 2])
+        v3[1, q + 1] = y[r, wo] * T[r, q, 0] + y[r, wo + 1] * T[r, q, 1] + y[r, wo + 2] * T[r, q, 2]
+    s2a = T[r, 0, 0] * y[r, S] + T[r, 0, 1] * y[r, S + 1] + T[r, 0, 2] * y[r, S + 2]
+    s2b = T[r, 1, 0] * y[r, S] + T[r, 1, 1] * y[r, S + 1] + T[r, 1, 2] * y[r, S + 2]
     delta = cst[C_FD] * x0 / dt
     tol = cst[C_VTOL] * vx
     mu = lc[LC_MU]
-    phi = np.empty(3)
-    R = np.empty(3)
-    J = np.empty((3, 3))
-    dz = np.empty(3)
     conv = False
-    xd_e = x_e = Fn = Fa = Fb = sea = seb = 0.0
+    xd_e = x_e = Fn = Fc = Fa = Fb = sea = seb = 0.0
     kt0 = kt1 = bt0 = bt1 = 0.0
     nmax = int(cst[C_NEWTON])
     for it in range(nmax + 1):
-        xd_e = -z[0]
+        xd_e = -v3[1, 0]
         x_e = x0 + dt * xd_e
-        forces(code, lc, oc, x_e + dt * delta, xd_e + delta, buf)
-        Fd = buf[0]
-        forces(code, lc, oc, x_e, xd_e, buf)
-        Fn = buf[0]
+        forces(code, lc, oc, p, x_e, xd_e, buf)
+        Fn, Fc = buf[0], buf[1]
         kt0, kt1, bt0, bt1 = buf[2], buf[3], buf[4], buf[5]
-        sea = s2a + dt * z[1]
-        seb = s2b + dt * z[2]
-        Fa = -(bt0 * z[1] + kt0 * sea)
-        Fb = -(bt1 * z[2] + kt1 * seb)
+        sea = s2a + dt * v3[1, 1]
+        seb = s2b + dt * v3[1, 2]
+        Fa = -(bt0 * v3[1, 1] + kt0 * sea)
+        Fb = -(bt1 * v3[1, 2] + kt1 * seb)
         if not math.isnan(mu):
             cap = mu * max(Fn, 0.0)
             mag = math.hypot(Fa, Fb)
@@ -437,61 +437,59 @@ def settled_row(cst, p, code, lc, oc, n, T, W, Wc, a, paper, t0, dt, y, turned, 
                 sc = cap / mag if mag > 0 else 1.0
                 Fa *= sc
                 Fb *= sc
-        phi[0], phi[1], phi[2] = Fn, Fa, Fb
+        v3[2, 0], v3[2, 1], v3[2, 2] = Fn, Fa, Fb
         rmax = 0.0
         for i in range(3):
-            R[i] = z[i] - z_free[i] - dt * (M[i, 0] * phi[0] + M[i, 1] * phi[1] + M[i, 2] * phi[2])
-            rmax = max(rmax, abs(R[i]))
+            v3[3, i] = v3[1, i] - v3[0, i] - dt * (m33[2, i, 0] * v3[2, 0] + m33[2, i, 1] * v3[2, 1] + m33[2, i, 2] * v3[2, 2])
+            rmax = max(rmax, abs(v3[3, i]))
         ints[1] += 1
         conv = rmax <= tol
         if conv or it == nmax:
             break
-        D0 = max((Fd - Fn) / delta, 0.0)
+        # forward difference dF_n/dx dt + dF_n/dx' (only when another iteration follows)
+        forces(code, lc, oc, p, x_e + dt * delta, xd_e + delta, buf)
+        D0 = max((buf[0] - Fn) / delta, 0.0)
         D1 = bt0 + kt0 * dt
         D2 = bt1 + kt1 * dt
         for i in range(3):
-            J[i, 0] = dt * M[i, 0] * D0
-            J[i, 1] = dt * M[i, 1] * D1
-            J[i, 2] = dt * M[i, 2] * D2
-            J[i, i] += 1.0
-        if not _solve3(J, R, dz):
+            m33[3, i, 0] = dt * m33[2, i, 0] * D0
+            m33[3, i, 1] = dt * m33[2, i, 1] * D1
+            m33[3, i, 2] = dt * m33[2, i, 2] * D2
+            m33[3, i, i] += 1.0
+        if not _solve3(m33, 3, v3, 3, 4, M34):
             return False
         for i in range(3):
-            z[i] -= dz[i]
+            v3[1, i] -= v3[4, i]
     if not (conv and x_e > 0 and Fn > 0 and abs(xd_e) <= cst[C_SPEED] * vx):
         return False
     # the step's result: the law's force at the end state, held over the step
-    f = np.empty(3)
     for i in range(3):
-        f[i] = Fn * n[i] + Fa * T[0, i] + Fb * T[1, i]
-    forces(code, lc, oc, x_e, 0.0, buf)
-    Fc = buf[1]
-    dx = x_e - x0
-    v1 = np.empty(3)
+        v3[5, i] = Fn * n[r, i] + Fa * T[r, 0, i] + Fb * T[r, 1, i]
+    dx = x_e - x0  # Fc: the elastic part F_n(x_e, 0), from the last evaluation
     for i in range(3):
-        v1[i] = y[V + i] + dt * (W[i, 0] * f[0] + W[i, 1] * f[1] + W[i, 2] * f[2] + a[i])
-        y[VC + i] = y[VC + i] + dt * (Wc[i, 0] * f[0] + Wc[i, 1] * f[1] + Wc[i, 2] * f[2] + a[i])
-    v1n = v1[0] * n[0] + v1[1] * n[1] + v1[2] * n[2]
+        v3[6, i] = y[r, V + i] + dt * (W[r, i, 0] * v3[5, 0] + W[r, i, 1] * v3[5, 1] + W[r, i, 2] * v3[5, 2] + a[r, i])
+        y[r, VC + i] = y[r, VC + i] + dt * (Wc[r, i, 0] * v3[5, 0] + Wc[r, i, 1] * v3[5, 1] + Wc[r, i, 2] * v3[5, 2] + a[r, i])
+    v1n = v3[6, 0] * n[r, 0] + v3[6, 1] * n[r, 1] + v3[6, 2] * n[r, 2]
     wt = 0.0
     for i in range(3):
-        wt += (f[i] - Fn * n[i]) * (v1[i] - v1n * n[i])
-    y[X] = x_e
+        wt += (v3[5, i] - Fn * n[r, i]) * (v3[6, i] - v1n * n[r, i])
+    y[r, X] = x_e
     for i in range(3):
-        y[V + i] = v1[i]
-        y[S + i] = sea * T[0, i] + seb * T[1, i]
-        y[P + i] = f[i] * dt
-        y[PI + i] = 0.5 * dt * dt * f[i]
-    y[WEL] += Fc * dx
-    y[WVI] += (Fn - Fc) * dx
-    y[Q] += (bt0 * z[1] * z[1] + bt1 * z[2] * z[2]) * dt
-    y[WT] -= wt * dt
+        y[r, V + i] = v3[6, i]
+        y[r, S + i] = sea * T[r, 0, i] + seb * T[r, 1, i]
+        y[r, P + i] = v3[5, i] * dt
+        y[r, PI + i] = 0.5 * dt * dt * v3[5, i]
+    y[r, WEL] += Fc * dx
+    y[r, WVI] += (Fn - Fc) * dx
+    y[r, Q] += (bt0 * v3[1, 1] * v3[1, 1] + bt1 * v3[1, 2] * v3[1, 2]) * dt
+    y[r, WT] -= wt * dt
     # record bookkeeping, as one substep at the end state
     if not turned[p] and xd_e <= 0:
         turned[p] = True
         fl[F_TAU1, p] = t0 + dt - fl[F_TONSET, p]
         fl[F_XTURN, p] = x_e
-        fl[F_WELC, p] = y[WEL]
-        fl[F_WVIC, p] = y[WVI]
+        fl[F_WELC, p] = y[r, WEL]
+        fl[F_WVIC, p] = y[r, WVI]
     if Fn > fl[F_FMAX, p]:
         fl[F_XATF, p] = x_e
         fl[F_FMAX, p] = Fn
@@ -504,7 +502,7 @@ def settled_row(cst, p, code, lc, oc, n, T, W, Wc, a, paper, t0, dt, y, turned, 
     return True
 
 
-@njit(cache=True)
+@jit
 def free_flight(n, a, y, rem):
     """Advance one row (y (NY,)) without contact force to the next onset
     (x >= 0 with closing speed) or by rem [s]; returns the time to the onset
@@ -548,24 +546,22 @@ def free_flight(n, a, y, rem):
     return tc
 
 
-@njit(cache=True)
-def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt, h_p, turned, fl, ints):
+@jit
+def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt, h_p, turned, fl, ints, buf, work,
+                  rows4):
     """RK4 sub-cycling of one contact row from t_loc to the end of the step
     or to the contact's end (ContactManager._integrate for one row). Returns
-    (ended, ended_by code, new t_loc)."""
-    buf = np.empty(6)
-    work = np.empty((5, NY))
-    Y = y.copy()
-    Y1 = np.empty(NY)
-    Yt = np.empty(NY)
-    tmp = np.empty(NY)
+    (ended, ended_by code, new t_loc). buf (6,), work (5, NY), rows4 (4, NY): scratch."""
+    Y, Y1, Yt, tmp = rows4[0], rows4[1], rows4[2], rows4[3]
+    for j in range(NY):
+        Y[j] = y[j]
     fz = lc[LC_FZ] != 0.0
     riter, rtol = int(cst[C_RITER]), cst[C_RTOL]
     rem = dt - t_loc
     nsub = max(1, int(math.ceil(rem / h_p - 1e-9)))
     hs = rem / nsub
     for i in range(nsub):
-        Fn0, Ft0 = rk4(code, lc, oc, n, T, W, Wc, a, paper, Y, hs, Y1, work, buf)
+        Fn0, Ft0 = rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, hs, Y1, work, buf)
         ints[2] += 1
         # peak force and friction ratio at the substep start
         if Fn0 > fl[F_FMAX, p]:
@@ -579,9 +575,9 @@ def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt,
         lo = 0.0
         # first maximum compression inside this substep
         if not turned[p] and xd0 > 0 and xd1 <= 0:
-            th = _root(0, code, lc, oc, n, T, W, Wc, a, paper, Y, hs, 0.0, 1.0, xd0, xd1, 1.0, 1.0, fz, tmp,
+            th = _root(0, code, lc, oc, p, n, T, W, Wc, a, paper, Y, hs, 0.0, 1.0, xd0, xd1, 1.0, 1.0, fz, tmp,
                        work, buf, riter, rtol)
-            rk4(code, lc, oc, n, T, W, Wc, a, paper, Y, th * hs, Yt, work, buf)
+            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, th * hs, Yt, work, buf)
             turned[p] = True
             fl[F_TAU1, p] = t0 + t_loc + th * hs - fl[F_TONSET, p]
             fl[F_XTURN, p] = Yt[X]
@@ -592,39 +588,41 @@ def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt,
         fl[F_XMAX, p] = max(fl[F_XMAX, p], Y1[X])
         # separation
         end = xd1 < 0 and Y1[X] < 0
-        if fz and xd1 < 0 and indicator(code, lc, oc, max(Y1[X], 0.0), xd1) < 0:
+        if fz and xd1 < 0 and indicator(code, lc, oc, p, max(Y1[X], 0.0), xd1) < 0:
             end = True
         if end:
-            rk4(code, lc, oc, n, T, W, Wc, a, paper, Y, lo * hs, Yt, work, buf)  # Ylo
+            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, lo * hs, Yt, work, buf)  # Ylo
             xs = Yt[X] if Yt[X] > 0 else 1.0
-            Bs = abs(indicator(code, lc, oc, max(Yt[X], 0.0), _xdot(Yt, n)))
+            Bs = abs(indicator(code, lc, oc, p, max(Yt[X], 0.0), _xdot(Yt, n)))
             if not Bs > 0:
                 Bs = 1.0
-            g_lo = _gfun(1, code, lc, oc, n, Yt, xs, Bs, fz)
-            g_hi = _gfun(1, code, lc, oc, n, Y1, xs, Bs, fz)
+            g_lo = _gfun(1, code, lc, oc, p, n, Yt, xs, Bs, fz)
+            g_hi = _gfun(1, code, lc, oc, p, n, Y1, xs, Bs, fz)
             if not g_lo > 0:  # a substep that starts already past the event: end at its start
                 g_lo = 1e-300
-            th = _root(1, code, lc, oc, n, T, W, Wc, a, paper, Y, hs, lo, 1.0, g_lo, g_hi, xs, Bs, fz, tmp,
+            th = _root(1, code, lc, oc, p, n, T, W, Wc, a, paper, Y, hs, lo, 1.0, g_lo, g_hi, xs, Bs, fz, tmp,
                        work, buf, riter, rtol)
-            rk4(code, lc, oc, n, T, W, Wc, a, paper, Y, th * hs, Yt, work, buf)  # Ye
+            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, th * hs, Yt, work, buf)  # Ye
             by_force = False
             if fz:
                 xde = _xdot(Yt, n)
-                gb = indicator(code, lc, oc, max(Yt[X], 0.0), xde) / Bs if xde < 0 else math.inf
+                gb = indicator(code, lc, oc, p, max(Yt[X], 0.0), xde) / Bs if xde < 0 else math.inf
                 by_force = gb < Yt[X] / xs
-            y[:] = Yt
+            for j in range(NY):
+                y[j] = Yt[j]
             ints[3] += 1
             return True, END_FORCE if by_force else END_OVERLAP, t_loc + th * hs
         for j in range(NY):
             Y[j] = Y1[j]
         t_loc += hs
-    y[:] = Y
+    for j in range(NY):
+        y[j] = Y[j]
     return False, 0, dt
 
 
-@njit(cache=True)
+@jit
 def advance(cst, pairs, n, T, W, Wc, a, paper, code, lc, oc, t0, dt, h, y, t_loc, in_c, status, ended_by,
-            turned, fl, ints):
+            turned, fl, ints, buf, work, rows4):
     """Move every row through the rest of its step (module docstring, 2):
     status[r] = ST_ONSET (free flight reached an onset at t_loc[r]: the
     caller begins the contact, sets in_c[r], and calls again), ST_ENDED (the
@@ -647,8 +645,8 @@ def advance(cst, pairs, n, T, W, Wc, a, paper, code, lc, oc, t0, dt, h, y, t_loc
             else:
                 t_loc[r] = dt
             continue
-        ended, by, tl = integrate_row(cst, code, lc, oc[p], n[r], T[r], W[r], Wc[r], a[r], paper[r], p, y[r],
-                                      t_loc[r], t0, dt, h[p], turned, fl, ints)
+        ended, by, tl = integrate_row(cst, code, lc, oc, n[r], T[r], W[r], Wc[r], a[r], paper[r], p, y[r],
+                                      t_loc[r], t0, dt, h[p], turned, fl, ints, buf, work, rows4)
         t_loc[r] = tl
         if ended:
             status[r] = ST_ENDED
@@ -657,7 +655,7 @@ def advance(cst, pairs, n, T, W, Wc, a, paper, code, lc, oc, t0, dt, h, y, t_loc
     return stopped
 
 
-@njit(cache=True)
+@jit
 def finale(pairs, n, W, Wc, settled, in_c, y, dt, timing, lc, active, x_state, xdot_state, s_state, vc_state,
            W_el, W_visc, Q_t, W_t, phase, outside, settled_state, Jst, dv_corr, dvc_corr, impulse):
     """Write back the rows' state (ContactManager._step_group's end): the
@@ -680,26 +678,29 @@ def finale(pairs, n, W, Wc, settled, in_c, y, dt, timing, lc, active, x_state, x
         if msf_kp and in_c[r] and max(yr[X], 0.0) / rmin >= 2.0:
             outside[p] = True
         settled_state[p] = settled[r]
-        J = np.zeros(3)
-        if timing and not settled[r]:
-            for i in range(3):
-                J[i] = yr[PI + i] / dt - 0.5 * yr[P + i]
+        corr = timing and not settled[r]
+        J0 = yr[PI] / dt - 0.5 * yr[P] if corr else 0.0
+        J1 = yr[PI + 1] / dt - 0.5 * yr[P + 1] if corr else 0.0
+        J2 = yr[PI + 2] / dt - 0.5 * yr[P + 2] if corr else 0.0
+        impulse[r, 0] = yr[P] + J0 - Jst[p, 0]
+        impulse[r, 1] = yr[P + 1] + J1 - Jst[p, 1]
+        impulse[r, 2] = yr[P + 2] + J2 - Jst[p, 2]
+        Jst[p, 0], Jst[p, 1], Jst[p, 2] = J0, J1, J2
         for i in range(3):
-            impulse[r, i] = yr[P + i] + J[i] - Jst[p, i]
-            Jst[p, i] = J[i]
-        for i in range(3):
-            dv_corr[p, i] = W[r, i, 0] * J[0] + W[r, i, 1] * J[1] + W[r, i, 2] * J[2]
-            dvc_corr[p, i] = Wc[r, i, 0] * J[0] + Wc[r, i, 1] * J[1] + Wc[r, i, 2] * J[2]
+            dv_corr[p, i] = W[r, i, 0] * J0 + W[r, i, 1] * J1 + W[r, i, 2] * J2
+            dvc_corr[p, i] = Wc[r, i, 0] * J0 + Wc[r, i, 1] * J1 + Wc[r, i, 2] * J2
 
 
-@njit(cache=True)
-def check(pair, P, x, n, point, v, vc, W, Wc, a, active, Jst):
+@jit
+def check(pair, P, x, n, point, v, vc, W, Wc, a, active, Jst, seen):
     """Validate the kinematics of one step (ContactManager.step's contract):
     returns (code, row): 0 ok; 1 a pair index outside [0, P); 2 a pair listed
     twice; 3 a non-finite value (row); 4 a normal that is not a unit vector;
-    5 a required pair (in contact, or with a timing correction) not listed."""
+    5 a required pair (in contact, or with a timing correction) not listed.
+    seen (P,) bool: scratch."""
     k = pair.shape[0]
-    seen = np.zeros(P, np.bool_)
+    for q in range(P):
+        seen[q] = False
     for r in range(k):
         q = pair[r]
         if q < 0 or q >= P:
