@@ -139,7 +139,8 @@ def simulate_impact(
 
     mu = law.mu
 
-    normal, kb, indicator = _scalar_kernels(law, o1)
+    normal, kb, indicator, forces = _scalar_kernels(law, o1)
+    inf1, inf2 = math.isinf(R1), math.isinf(R2)
 
     def lever(x, R):
         return 0.0 if math.isinf(R) else R - 0.5 * max(x, 0.0)
@@ -153,13 +154,15 @@ def simulate_impact(
 
         def rhs(t, y):
             x, vx, s, vt, w1, w2, Wc, Wb, Q = y
-            l1, l2 = lever(x, R1), lever(x, R2)
+            xp = max(x, 0.0)
+            l1 = 0.0 if inf1 else R1 - 0.5 * xp  # lever(x, R1)
+            l2 = 0.0 if inf2 else R2 - 0.5 * xp
             u = vt if paper else vt - w1 * l1 - w2 * l2  # u_of(x, vt, w1, w2)
-            Fn, Fc = normal(x, vx)
             if mode == 0:
-                k, b = kb(x)
+                Fn, Fc, k, b = forces(x, vx)
                 Ft, q, sdot = -(k * s + b * u), b * u * u, u
             else:
+                Fn, Fc = normal(x, vx)
                 Ft, q, sdot = -mode * mu * max(Fn, 0.0), 0.0, 0.0
             return (vx, -Fn / m, sdot, Ft / m, -l1 * Ft / J1, -l2 * Ft * inv_J2, Fc * vx, (Fn - Fc) * vx, q)
 
@@ -399,7 +402,8 @@ def _scalar_kernels(law: ForceLaw, o1: dict):
 
     - normal(x, x') -> (F_n after the separation rule, its elastic part F_n(x, 0)) [N],
     - kb(x) -> (tangential stiffness [N/m], damping [N s/m]) along the first axis,
-    - indicator(x, x') -> B of F_n = S(x) B.
+    - indicator(x, x') -> B of F_n = S(x) B,
+    - forces(x, x') -> normal(x, x') + kb(x) in one call (k_p evaluated once).
 
     x [m] >= 0, x' [m/s]; o1 the onset dict, (1,) arrays. For MSFLaw's own
     forces the same expressions in the same order as MSFLaw.normal_force,
@@ -422,7 +426,10 @@ def _scalar_kernels(law: ForceLaw, o1: dict):
         def indicator(x, vx):
             return float(law.separation_indicator(np.array([x]), np.array([vx]), o1)[0])
 
-        return normal, kb, indicator
+        def forces(x, vx):
+            return normal(x, vx) + kb(x)
+
+        return normal, kb, indicator, forces
 
     g = law.geom
     R_a, R_b, k_ha = g.R_a, g.R_b, g.k_ha
@@ -453,7 +460,19 @@ def _scalar_kernels(law: ForceLaw, o1: dict):
     def indicator(x, vx):
         return 2.0 * eta * vx + (2.0 / 3.0) * E * x
 
-    return normal, kb, indicator
+    same_radii = R_a == R_b
+
+    def forces(x, vx):
+        x = max(x, 0.0)
+        kp_a = kp(x, R_a)
+        kp_b = kp_a if same_radii else kp(x, R_b)
+        base = (kp_a * sq_a + kp_b * sq_b) * math.sqrt(x)
+        el = (2.0 / 3.0) * E * x
+        F = base * (2.0 * eta * vx + el)
+        P_bx = k_ha * x + 2.0 * kp_b * math.sqrt(R_b * x)
+        return (max(F, 0.0) if clamp else F), base * el, G * P_bx, eta_G * P_bx
+
+    return normal, kb, indicator, forces
 
 
 def _opt(d, key):

@@ -128,7 +128,7 @@ def test_inlined_msf_kernels_equal_the_law(kp_mode, separation, curvature):
     assert solver._msf_inline(law) and not solver._msf_inline(PlainMSF(ContactPair(RUBBER, RIGID), curvature))
     m = 4 / 3 * math.pi * R**3 * RUBBER.density
     o1 = {k: np.atleast_1d(v)[:1] for k, v in law.onset_reference([1.3], [m]).items()}
-    normal, kb, indicator = solver._scalar_kernels(law, o1)
+    normal, kb, indicator, forces = solver._scalar_kernels(law, o1)
     rng = np.random.default_rng(0)
     xs = np.concatenate([[0.0, -1e-6, 1e-9, 2.0 * law.geom.R], rng.uniform(0.0, 3e-3, 40)])
     vs = rng.uniform(-2.0, 2.0, xs.size)
@@ -139,6 +139,7 @@ def test_inlined_msf_kernels_equal_the_law(kp_mode, separation, curvature):
         assert Fc == pytest.approx(float(law.normal_force(xa, np.array([0.0]), o1)[0]), rel=SAME_EXPRESSION_RTOL)
         k, b = law.tangential_stiffness(xa, o1)
         assert kb(x) == pytest.approx((float(k[0, 0]), float(b[0, 0])), rel=SAME_EXPRESSION_RTOL)
+        assert forces(x, v) == (Fn, Fc) + kb(x)
         assert indicator(xa[0], v) == pytest.approx(
             float(law.separation_indicator(xa, np.array([v]), o1)[0]), rel=SAME_EXPRESSION_RTOL)
 
