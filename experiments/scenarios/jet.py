@@ -1074,13 +1074,12 @@ class JetPool(abc.ABC):
         if not launch:
             return
         idx = np.array([i for i, _, _ in launch])
-        late = np.array([lt for _, _, lt in launch])[:, None]
-        p0 = np.array([e.p for _, e, _ in launch])
-        v0 = np.array([e.v for _, e, _ in launch])
+        a = np.array([(e.t, *e.p, *e.v, late) for _, e, late in launch])  # (k, 8)
+        p0, v0, late = a[:, 1:4], a[:, 4:7], a[:, 7:8]
         self._place(idx, p0 + v0 * late + 0.5 * self._g * late * late, v0 + self._g * late)
         self.state[idx] = FLIGHT
         self.emission_id[idx] = self.counts.emitted + np.arange(idx.size)
-        self.t_emit[idx] = [e.t for _, e, _ in launch]
+        self.t_emit[idx] = a[:, 0]
         self.p_emit[idx] = p0
         self.v_emit[idx] = v0
         self.deflected[idx] = False
