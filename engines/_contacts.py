@@ -568,6 +568,7 @@ class ContactManager:
         self._seen = np.zeros(P, bool)
         self._scr_settled = (np.empty(6), np.empty((4, 3, 3)), np.empty((8, 3)), np.empty((3, 4)))
         self._scr_rk4 = (np.empty(6), np.empty((5, NY)), np.empty((4, NY)))
+        self._params: dict[int, dict] = {}  # law.parameters() per group, copied into each record
 
     @property
     def active_count(self) -> int:
@@ -998,16 +999,18 @@ class ContactManager:
         # store per pair (group arrays created on first use)
         store = self._onset[g]
         size = self._group_size[g]
+        o_new = {}
         for key, val in o.items():
             val = np.broadcast_to(np.asarray(val, dtype=float), (pp.size,))
+            o_new[key] = val
             if key not in store:
                 store[key] = np.full(size, np.nan)
             store[key][self._pos[pp]] = val
-        batch.onset = {key: arr[self._pos[p]] for key, arr in store.items()}
+        if not isinstance(batch, _Rows):  # the numpy path's batch carries its rows' onset constants
+            batch.onset = {key: arr[self._pos[p]] for key, arr in store.items()}
         # duration estimate -> internal step
         tau_n = _duration_estimate(law, o, m, v_used)
         x_est = cf.hertz_x_max(m, v_used, law.moduli.E, law.geom.R)
-        o_new = {key: np.broadcast_to(np.asarray(val, dtype=float), (pp.size,)) for key, val in o.items()}
         k_t, _ = law.tangential_stiffness(x_est, o_new)
         T = np.eye(3) - n[:, :, None] * n[:, None, :]
         w_t = np.linalg.eigvalsh(T @ W @ T)[:, -1]
@@ -1138,32 +1141,46 @@ class ContactManager:
 
     # ------------------------------------------------------------ records --
     def _end(self, p, ye, t_end, ended_by, n):
-        """Close the contact of pair p with the state ye (NY,) at time t_end."""
+        """Close the contact of pair p with the state ye (NY,) at time t_end
+        (scalar arithmetic on Python floats: this runs once per impact)."""
         law = self.pairs[p].law
         g = self._group_of[p]
         onset = {k: float(v[self._pos[p]]) for k, v in self._onset[g].items()}
-        o1 = {k: np.array([v]) for k, v in onset.items()}
-        v = ye[_V]
-        xd_end = -float(v @ n)
+        yl, nl = ye.tolist(), n.tolist()
+        v = yl[1:4]
+        xd_end = -(v[0] * nl[0] + v[1] * nl[1] + v[2] * nl[2])
         v_out = max(-xd_end, 0.0)
         vin = self.v_n_in[p] if self.v_n_in[p] > 0 else self.v_n_used[p]
         tau = t_end - self.t_onset[p]
         tau1 = self.tau1[p] if self.turned[p] else tau
-        u_in = self.u_in[p]
-        u_out = v + xd_end * n
-        lu = float(np.linalg.norm(u_in))
-        scale = max(vin, lu, float(np.linalg.norm(self.vc_in[p])))
-        cor_t_contact = (-float(u_out @ u_in) / lu**2) if lu > 1e-12 * scale else None
-        vct = self.vc_in[p]
-        lv = float(np.linalg.norm(vct))
-        cor_t = (float(ye[_VC] @ vct) / lv**2) if lv > 1e-12 * scale else None
+        u_in = self.u_in[p].tolist()
+        u_out = [v[i] + xd_end * nl[i] for i in range(3)]
+        lu = math.sqrt(u_in[0] ** 2 + u_in[1] ** 2 + u_in[2] ** 2)
+        vct = self.vc_in[p].tolist()
+        lv = math.sqrt(vct[0] ** 2 + vct[1] ** 2 + vct[2] ** 2)
+        scale = max(vin, lu, lv)
+        cor_t_contact = (-(u_out[0] * u_in[0] + u_out[1] * u_in[1] + u_out[2] * u_in[2]) / lu**2
+                         if lu > 1e-12 * scale else None)
+        vc_end = yl[7:10]
+        cor_t = ((vc_end[0] * vct[0] + vc_end[1] * vct[1] + vc_end[2] * vct[2]) / lv**2
+                 if lv > 1e-12 * scale else None)
         x_m = float(self.x_turn[p]) if self.turned[p] else float(self.x_max[p])
         outside = []
-        if self.outside[p] or bool(law.outside(np.array([self.x_max[p]]))[0]):
+        x_lim = law.x_limit
+        if self.outside[p] or (x_lim is not None and self.x_max[p] >= x_lim):
             outside.append(f"x_max = {self.x_max[p]:.6g} m reached 2R: k_p = sqrt(2 - x/R) of (15) was clamped")
-        Pc = _pc(law, x_m, o1)
-        Pc_F = 1.5 * self.F_max[p] / float(area(self.x_at_F[p], law.geom, law.kp_mode)) if self.x_at_F[p] > 0 else 0.0
-        W_el, W_vi = float(ye[_WEL]), float(ye[_WVI])
+        kl = self._kernel_law[g]
+        if kl is not None:
+            Pc, Pc_F = K.peak_pressures(kl[0], kl[1], self._oc, p, x_m, float(self.x_at_F[p]), float(self.F_max[p]),
+                                        self._scr_rk4[0])
+        else:
+            Pc = _pc(law, x_m, {k: np.array([v]) for k, v in onset.items()})
+            Pc_F = (1.5 * self.F_max[p] / float(area(self.x_at_F[p], law.geom, law.kp_mode))
+                    if self.x_at_F[p] > 0 else 0.0)
+        W_el, W_vi = yl[_WEL], yl[_WVI]
+        params = self._params.get(g)
+        if params is None:
+            params = self._params[g] = law.parameters()
         rec = ImpactRecord(
             cor_n=v_out / vin,
             cor_t=cor_t,
@@ -1173,13 +1190,13 @@ class ContactManager:
             x_max=x_m, F_max=float(self.F_max[p]), Pc_max=Pc, Pc_at_Fmax=float(Pc_F),
             W_el_comp=float(self.W_el_comp[p]), W_visc_comp=float(self.W_visc_comp[p]),
             W_el_rest=-(W_el - float(self.W_el_comp[p])), W_visc_rest=W_vi - float(self.W_visc_comp[p]),
-            W_diss_n=W_el + W_vi, W_diss_t=float(ye[_WT]), Q_t=float(ye[_Q]),
+            W_diss_n=W_el + W_vi, W_diss_t=yl[_WT], Q_t=yl[_Q],
             spin_in=None, spin_out=None,
             f_min=None if not math.isfinite(self.f_min[p]) else float(self.f_min[p]),
             f_max=float(self.f_max[p]) if math.isfinite(self.f_min[p]) else None,
             omega_x=onset.get("omega_x"), omega_y=onset.get("omega_y"),
             ended_by=ended_by, law=law.name, engine=self.engine, dt=self.dt,
-            parameters=law.parameters(),
+            parameters=dict(params),
             inputs={
                 "pair": p, "body1": _name(self.pairs[p].body1), "body2": _name(self.pairs[p].body2),
                 "t_onset": float(self.t_onset[p]), "t_end": float(t_end),
@@ -1194,8 +1211,13 @@ class ContactManager:
         self.active[p] = False
         # spin axis n x t of the incidence (rolling in the direction of incidence positive)
         t_dir = vct if lv > 0 else u_in
-        lt = float(np.linalg.norm(t_dir))
-        axis = np.cross(self.n_in[p], t_dir / lt) if lt > 0 else np.zeros(3)
+        lt = lv if lv > 0 else lu
+        if lt > 0:
+            a0 = self.n_in[p].tolist()
+            t = [c / lt for c in t_dir]
+            axis = np.array([a0[1] * t[2] - a0[2] * t[1], a0[2] * t[0] - a0[0] * t[2], a0[0] * t[1] - a0[1] * t[0]])
+        else:
+            axis = np.zeros(3)
         bi = self.body_in[p]
         if bi is not None:
             rec.inputs["body_in"] = {k: _plain(v) for k, v in bi.items()}

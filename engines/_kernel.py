@@ -723,3 +723,24 @@ def check(pair, P, x, n, point, v, vc, W, Wc, a, active, Jst, seen):
         if (active[q] or Jst[q, 0] != 0.0 or Jst[q, 1] != 0.0 or Jst[q, 2] != 0.0) and not seen[q]:
             return 5, q
     return 0, -1
+
+
+@jit_inline
+def _area(lc, x):
+    """(41): S_x = pi k_pa k_pb sqrt(R_a R_b) x [m^2], k_p in the law's mode (clamped)."""
+    mode = int(lc[LC_KPMODE])
+    return math.pi * _kp(x, lc[LC_RA], mode) * _kp(x, lc[LC_RB], mode) * lc[LC_SRA] * lc[LC_SRB] * x
+
+
+@jit
+def peak_pressures(code, lc, oc, p, x_m, x_F, F_max, buf):
+    """(20), (41) for a finished contact: P_c = 1.5 F_n(x_m, 0)/S(x_m) at the
+    maximum compression x_m, and 1.5 F_max/S(x_F) at the peak force [Pa]
+    (0 where x <= 0); as engines._contacts._pc."""
+    Pc = 0.0
+    if x_m > 0:
+        forces(code, lc, oc, p, x_m, 0.0, buf)
+        xa = min(x_m, 2.0 * math.sqrt(lc[LC_RA] * lc[LC_RB]) * (1.0 - 1e-12))
+        Pc = 1.5 * buf[0] / _area(lc, xa)
+    PcF = 1.5 * F_max / _area(lc, x_F) if x_F > 0 else 0.0
+    return Pc, PcF
