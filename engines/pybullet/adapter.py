@@ -307,19 +307,11 @@ class PybulletAdapter(EngineAdapter):
         uids = self._base_uids
         nb = len(uids)
         # bases: one call per body and quantity, mapped from C with the client id positional (the
-        # keyword costs ~0.1 us a call), the tuples flattened by itertools and converted once; the
-        # garbage collector paused meanwhile (the 2B result tuples would trigger collections that
-        # traverse them: ~0.1 us a body)
-        gc_was = gc.isenabled()
-        gc.disable()
-        try:
-            po = np.fromiter(chain.from_iterable(chain.from_iterable(
-                map(pb.getBasePositionAndOrientation, uids, repeat(c)))), float, 7 * nb).reshape(nb, 7)
-            vw = np.fromiter(chain.from_iterable(chain.from_iterable(
-                map(pb.getBaseVelocity, uids, repeat(c)))), float, 6 * nb).reshape(nb, 6)
-        finally:
-            if gc_was:
-                gc.enable()
+        # keyword costs ~0.1 us a call), the tuples flattened by itertools and converted once
+        po = np.fromiter(chain.from_iterable(chain.from_iterable(
+            map(pb.getBasePositionAndOrientation, uids, repeat(c)))), float, 7 * nb).reshape(nb, 7)
+        vw = np.fromiter(chain.from_iterable(chain.from_iterable(
+            map(pb.getBaseVelocity, uids, repeat(c)))), float, 6 * nb).reshape(nb, 6)
         B = len(self._body_list)
         com, q, v, w = np.empty((B, 3)), np.empty((B, 4)), np.empty((B, 3)), np.empty((B, 3))
         jb = self._base_slots
@@ -363,7 +355,15 @@ class PybulletAdapter(EngineAdapter):
         if self._closed:
             raise RuntimeError("the adapter is closed")
         for _ in range(int(n)):
-            self._step_once()
+            # the garbage collector paused within a step: the reads' result tuples and the forces'
+            # lists (~10 per body) would trigger collections that traverse them (~0.1 us a body)
+            gc_was = gc.isenabled()
+            gc.disable()
+            try:
+                self._step_once()
+            finally:
+                if gc_was:
+                    gc.enable()
 
     def close(self) -> None:
         """Disconnect the client (the adapter owns it from construction on)."""
