@@ -157,12 +157,12 @@ class EpsTable:
     def __init__(self, tan_delta: float, separation: str):
         self.nodes = np.array(EPS_NODES)
         rows = [self_consistent_bracketed(tan_delta, float(e), separation) for e in self.nodes]
-        self._f = {
-            name: CubicSpline(self.nodes, [getattr(r, name) for r in rows])
-            for name in ("gamma", "tau", "tau1", "x_max", "cor", "F_max")
-        }
-        self._f["dtau_dgamma"] = CubicSpline(
-            self.nodes, [_dtau_dgamma(r.gamma, float(e), separation) for r, e in zip(rows, self.nodes)])
+        self._names = ("gamma", "tau", "tau1", "x_max", "cor", "F_max", "dtau_dgamma")
+        cols = [[getattr(r, name) for r in rows] for name in self._names[:-1]]
+        cols.append([_dtau_dgamma(r.gamma, float(e), separation) for r, e in zip(rows, self.nodes)])
+        # one spline of the 7 columns (each column its own not-a-knot spline, as 7 splines would
+        # be): one evaluation per call instead of seven
+        self._f = CubicSpline(self.nodes, np.array(cols).T, axis=0)
 
     def __call__(self, eps) -> dict[str, np.ndarray]:
         eps = np.asarray(eps, dtype=float)
@@ -171,7 +171,8 @@ class EpsTable:
                 f"eps = x_0/(2R) = {float(np.max(eps)):.4g} exceeds the onset table's range "
                 f"{self.nodes[-1]}: the impact is too deep for the msf geometry"
             )
-        return {k: f(eps) for k, f in self._f.items()}
+        val = self._f(eps)
+        return {k: val[..., j] for j, k in enumerate(self._names)}
 
 
 def _dtau_dgamma(gamma: float, eps: float, separation: str) -> float:
