@@ -512,6 +512,13 @@ class ContactManager:
         #: per law group: (code, constants) of the compiled kernel, or None (numpy path)
         self.compiled = bool(compiled)
         self._kernel_law = {g: (kernel_law(law) if self.compiled else None) for g, law in self._groups.items()}
+        # the kernel's laws: pair -> index into _kcodes/_kLC (-1: numpy path); all of them in one kernel call
+        kgs = [g for g in self._groups if self._kernel_law[g] is not None]
+        self._kcodes = np.array([self._kernel_law[g][0] for g in kgs], dtype=np.int64)
+        self._kLC = np.array([self._kernel_law[g][1] for g in kgs], dtype=float).reshape(len(kgs), K.NLC)
+        kidx = {g: j for j, g in enumerate(kgs)}
+        self._kg_of_pair = np.array([kidx.get(g, -1) for g in self._group_of], dtype=np.int64)
+        self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
         self._probe: Callable[[int], dict] | None = None
         self._init_state(P)
         self.records: list[ImpactRecord] = []
@@ -655,17 +662,24 @@ class ContactManager:
         self._point[pair] = point
         info = {"rows": k, "substeps": 0, "segments": 0, "onsets": 0, "ends": 0, "settled": 0,
                 "settled_iterations": 0}
-        for g, law in self._groups.items():
-            if len(self._groups) == 1:
-                rows = slice(None)
-            else:
+        if self._all_kernel:
+            krows = slice(None)
+        else:
+            krows = np.flatnonzero(self._kg_of_pair[pair] >= 0)
+        if self._all_kernel or krows.size:
+            P = self._step_compiled(pair[krows], x[krows], n[krows], v[krows], vc[krows], W[krows], Wc[krows],
+                                    a[krows], t0, info)
+            force[krows] = P / self.dt
+        if not self._all_kernel:
+            for g, law in self._groups.items():
+                if self._kernel_law[g] is not None:
+                    continue
                 rows = np.flatnonzero(self._group_of[pair] == g)
                 if rows.size == 0:
                     continue
-            step_group = self._step_group if self._kernel_law[g] is None else self._step_group_compiled
-            P = step_group(g, law, pair[rows], x[rows], n[rows], v[rows], vc[rows], W[rows], Wc[rows], a[rows],
-                           t0, info)
-            force[rows] = P / self.dt
+                P = self._step_group(g, law, pair[rows], x[rows], n[rows], v[rows], vc[rows], W[rows], Wc[rows],
+                                     a[rows], t0, info)
+                force[rows] = P / self.dt
         self.last_step_info = info
         return ContactForces(force=force, point=point.copy(), pair=pair.copy())
 
@@ -690,10 +704,11 @@ class ContactManager:
         raise RuntimeError(f"engines._kernel.check returned an unknown code {code!r}")
 
     # ---------------------------------------------------- one law group --
-    def _step_group_compiled(self, g, law, p, x_eng, n, v, vc, W, Wc, a, t0, info):
-        """_step_group in the compiled kernel (engines._kernel); law.onset and
-        the records stay here, called for the rows the kernel stops at."""
-        code, lc = self._kernel_law[g]
+    def _step_compiled(self, p, x_eng, n, v, vc, W, Wc, a, t0, info):
+        """_step_group for the rows of every law the kernel knows, in one
+        call of the compiled kernel (engines._kernel); law.onset and the
+        records stay here, called for the rows the kernel stops at."""
+        kg, codes, LC = self._kg_of_pair[p], self._kcodes, self._kLC
         dt = self.dt
         k = p.shape[0]
         paper = self._paper[p]
@@ -706,13 +721,13 @@ class ContactManager:
         ended_by = np.zeros(k, np.int8)
         ints = np.zeros(4, np.int64)
         fl, oc = self._fl, self._oc
-        K.prelude(_KCST, p, x_eng, n, v, vc, W, Wc, a, paper, t0, dt, self.settle_rate, self.settled_path, code, lc,
-                  oc, self.active, self.x, self.s, self.tau_est, self.dv_corr, self.dvc_corr, self.W_el,
+        K.prelude(_KCST, p, x_eng, n, v, vc, W, Wc, a, paper, t0, dt, self.settle_rate, self.settled_path, kg, codes,
+                  LC, oc, self.active, self.x, self.s, self.tau_est, self.dv_corr, self.dvc_corr, self.W_el,
                   self.W_visc, self.Q_t, self.W_t, y, T, t_loc, in_c, settled, status, self.turned, fl, ints,
                   *self._scr_settled)
         for _ in range(MAX_SEGMENTS):
             info["segments"] += 1
-            stopped = K.advance(_KCST, p, n, T, W, Wc, a, paper, code, lc, oc, t0, dt, self.h, y, t_loc, in_c,
+            stopped = K.advance(_KCST, p, n, T, W, Wc, a, paper, kg, codes, LC, oc, t0, dt, self.h, y, t_loc, in_c,
                                 status, ended_by, self.turned, fl, ints, *self._scr_rk4)
             if not stopped:
                 break
@@ -720,18 +735,22 @@ class ContactManager:
                 self._end(int(p[r]), y[r], float(t0 + t_loc[r]),
                           "force-zero" if ended_by[r] == K.END_FORCE else "overlap-zero", n[r])
                 in_c[r] = False
-            new = np.flatnonzero(status == K.ST_ONSET)
-            if new.size:
-                self._begin(g, law, p, new, y, _Rows(n, W, a), t0 + t_loc[new])
-                store, pp = self._onset[g], p[new]
-                for j, key in enumerate(K.ONSET_KEYS[code]):
-                    oc[pp, j] = store[key][self._pos[pp]]
-                in_c[new] = True
-                info["onsets"] += int(new.size)
+            new_all = np.flatnonzero(status == K.ST_ONSET)
+            if new_all.size:
+                grp = self._group_of[p[new_all]]
+                rows = _Rows(n, W, a)
+                for g in (grp[:1] if np.all(grp == grp[0]) else np.unique(grp)):
+                    new = new_all[grp == g]
+                    self._begin(g, self._groups[g], p, new, y, rows, t0 + t_loc[new])
+                    store, pp = self._onset[g], p[new]
+                    for j, key in enumerate(K.ONSET_KEYS[self._kernel_law[g][0]]):
+                        oc[pp, j] = store[key][self._pos[pp]]
+                in_c[new_all] = True
+                info["onsets"] += int(new_all.size)
         else:
             raise RuntimeError(f"more than {MAX_SEGMENTS} contact onsets/separations in one step of {dt!r} s")
         impulse = np.empty((k, 3))
-        K.finale(p, n, W, Wc, settled, in_c, y, dt, self.timing_correction, lc, self.active, self.x, self.xdot,
+        K.finale(p, n, W, Wc, settled, in_c, y, dt, self.timing_correction, kg, LC, self.active, self.x, self.xdot,
                  self.s, self.vc, self.W_el, self.W_visc, self.Q_t, self.W_t, self.phase, self.outside,
                  self.settled, self.J, self.dv_corr, self.dvc_corr, impulse)
         info["settled"] += int(ints[0])

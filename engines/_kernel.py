@@ -24,7 +24,9 @@ MSF (37) with k_p of (15) in the law's mode and the tangential (36)-(37);
 Hertz (30), Kuwabara-Kono, Hunt-Crossley and the linear spring-dashpot with
 the Hertz-Mindlin tangential stiffness 8 G sqrt(R x); the Coulomb cap
 mu F_n when mu is set. Onset constants per row ``oc`` (k, NOC): see
-:data:`ONSET_KEYS`. Law constants ``lc`` (NLC,): see ``LC_*``.
+:data:`ONSET_KEYS`. Law constants ``lc`` (NLC,): see ``LC_*``; rows of
+several laws go through one call, row r with the law kg[r] of codes (G,)
+and LC (G, NLC).
 
 Equality with the numpy path is tested (tests/test_kernel.py); the two
 differ only where the numpy path treats rows in lock-step (one internal
@@ -315,7 +317,7 @@ def _solve3(A3, ia, B, ib, iout, M):
 
 
 @jit
-def prelude(cst, pairs, x_eng, n, v, vc, W, Wc, a, paper, t0, dt, settle_rate, settled_path, code, lc, oc,
+def prelude(cst, pairs, x_eng, n, v, vc, W, Wc, a, paper, t0, dt, settle_rate, settled_path, kg, codes, LC, oc,
             active, x_state, s_state, tau_est, dv_corr, dvc_corr, W_el, W_visc, Q_t, W_t,
             y, T, t_loc, in_c, settled, status, turned, fl, ints, buf, m33, v3, M34):
     """Step start for rows 0..k-1 (pair index pairs[r]): y, T, in_c, and the
@@ -357,8 +359,8 @@ def prelude(cst, pairs, x_eng, n, v, vc, W, Wc, a, paper, t0, dt, settle_rate, s
         settled[r] = False
         status[r] = ST_DONE
         if settled_path and settle and x0 > 0:
-            if settled_row(cst, r, p, code, lc, oc, n, T, W, Wc, a, paper[r], t0, dt, y, turned, fl, ints, buf, m33,
-                           v3, M34):
+            if settled_row(cst, r, p, codes[kg[r]], LC[kg[r]], oc, n, T, W, Wc, a, paper[r], t0, dt, y, turned, fl,
+                           ints, buf, m33, v3, M34):
                 settled[r] = True
                 t_loc[r] = dt
 
@@ -621,7 +623,7 @@ def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt,
 
 
 @jit
-def advance(cst, pairs, n, T, W, Wc, a, paper, code, lc, oc, t0, dt, h, y, t_loc, in_c, status, ended_by,
+def advance(cst, pairs, n, T, W, Wc, a, paper, kg, codes, LC, oc, t0, dt, h, y, t_loc, in_c, status, ended_by,
             turned, fl, ints, buf, work, rows4):
     """Move every row through the rest of its step (module docstring, 2):
     status[r] = ST_ONSET (free flight reached an onset at t_loc[r]: the
@@ -645,7 +647,7 @@ def advance(cst, pairs, n, T, W, Wc, a, paper, code, lc, oc, t0, dt, h, y, t_loc
             else:
                 t_loc[r] = dt
             continue
-        ended, by, tl = integrate_row(cst, code, lc, oc, n[r], T[r], W[r], Wc[r], a[r], paper[r], p, y[r],
+        ended, by, tl = integrate_row(cst, codes[kg[r]], LC[kg[r]], oc, n[r], T[r], W[r], Wc[r], a[r], paper[r], p, y[r],
                                       t_loc[r], t0, dt, h[p], turned, fl, ints, buf, work, rows4)
         t_loc[r] = tl
         if ended:
@@ -656,15 +658,16 @@ def advance(cst, pairs, n, T, W, Wc, a, paper, code, lc, oc, t0, dt, h, y, t_loc
 
 
 @jit
-def finale(pairs, n, W, Wc, settled, in_c, y, dt, timing, lc, active, x_state, xdot_state, s_state, vc_state,
+def finale(pairs, n, W, Wc, settled, in_c, y, dt, timing, kg, LC, active, x_state, xdot_state, s_state, vc_state,
            W_el, W_visc, Q_t, W_t, phase, outside, settled_state, Jst, dv_corr, dvc_corr, impulse):
     """Write back the rows' state (ContactManager._step_group's end): the
     timing correction J = int (dt/2 - t) f dt / dt (0 for settled rows),
     the step's impulse P + J - J_previous into impulse (k, 3) [N s]."""
-    rmin = min(lc[LC_RA], lc[LC_RB])
-    msf_kp = int(lc[LC_KPMODE]) == KP_MSF
     for r in range(pairs.shape[0]):
         p = pairs[r]
+        lc = LC[kg[r]]
+        rmin = min(lc[LC_RA], lc[LC_RB])
+        msf_kp = int(lc[LC_KPMODE]) == KP_MSF
         yr = y[r]
         active[p] = in_c[r]
         x_state[p] = yr[X]

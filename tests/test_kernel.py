@@ -231,3 +231,36 @@ def test_registry_laws_take_the_kernel_and_overridden_laws_do_not():
     eng = balls_on_plate(own, R_PTFE, 1.0, 1e-4, [1e-5], angle_deg=30.0)
     rec = eng.run_until_records(1, 0.01)[0]
     assert 0.0 < rec.cor_n < 1.0
+
+
+def test_rows_of_several_laws_in_one_kernel_call():
+    # a rubber MSF ball, a PTFE Hertz ball and a PTFE Kuwabara-Kono ball in one manager: one kernel
+    # call carries the three laws; each ball equals its own single-law numpy run
+    specs = [(LAWS_RUBBER["msf"], 0.02, 0.6e-3), (LAWS_PTFE["hertz"], R_PTFE, 0.3e-3),
+             (LAWS_PTFE["kuwabara-kono"], R_PTFE, 0.45e-3)]
+
+    def engine(items, compiled):
+        masses = [4.0 / 3.0 * math.pi * R**3 * law.pair.body1.density for law, R, _ in items]
+        eng = FakeEngine([PairSpec(f"b{k}", "plate", law) for k, (law, _, _) in enumerate(items)],
+                         [(k, -1) for k in range(len(items))], [R for _, R, _ in items], masses,
+                         [[0.1 * k, 0.0, R + gap] for k, (_, R, gap) in enumerate(items)],
+                         [[0.0, 0.0, -1.0]] * len(items), [[0.0, 0.0, 0.0]] * len(items), 1e-3)
+        eng.mgr = ContactManager(eng.mgr.pairs, 1e-3, "fake", compiled=compiled)
+        return eng
+
+    multi = engine(specs, True)
+    assert multi.mgr._kcodes.size == 3 and multi.mgr._all_kernel
+    for _ in range(10):
+        multi.step()
+    recs = multi.mgr.pop_records()
+    assert len(recs) == 3
+    for k, item in enumerate(specs):
+        one = engine([item], False)
+        for _ in range(10):
+            one.step()
+        (b,) = one.mgr.pop_records()
+        (a,) = [r for r in recs if r.inputs["pair"] == k]
+        assert a.law == b.law
+        for key in ("cor_n", "tau", "x_max", "F_max"):
+            assert close(getattr(a, key), getattr(b, key), SAME_RTOL, 0.0), (k, key)
+        assert np.allclose(multi.v[k], one.v[0], rtol=SAME_RTOL, atol=1e-15)
