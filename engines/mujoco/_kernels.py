@@ -9,12 +9,12 @@ loops and compiled, reading the MjData arrays (numpy views) directly:
    :mod:`engines._geometry`), v_rel from ``cvel``, the a_ext estimate and its
    state, the candidate test (:func:`engines._contacts.closing_distance`),
    W, W_com and v_com_rel of the candidates;
-2. :func:`held`: :func:`engines.mujoco.adapter.held_forces` for the rows with
-   a force;
-3. :func:`free_forces` and :func:`apply`: the free joints' generalised force
-   (force; torque about the joint anchor in body axes) added to
-   ``qfrc_passive`` (or to an impulse vector);
-4. :func:`velocity_change` and :func:`held_dv`: the change of every pair's
+2. :func:`after_step`: :func:`engines.mujoco.adapter.held_forces` for the
+   rows with a force, and :func:`free_forces`: what :func:`apply` adds to
+   ``qfrc_passive`` (or to an impulse vector) in every hook call of the
+   step: the free joints' generalised force (force; torque about the joint
+   anchor in body axes);
+3. :func:`velocity_change` and :func:`held_dv`: the change of every pair's
    v_rel this step's impulses cause, for the next step's a_ext.
 
 The group's constants are packed into two arrays built once by the adapter:
@@ -159,21 +159,26 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
         # Detection.of_sphere: body 1's surface point at the overlap's middle, body 2's across the gap
         s1 = R - 0.5 * (xx if xx > 0.0 else 0.0)
         s2 = xx if xx < 0.0 else 0.0
-        for i in range(3):
-            q1 = c[i] - s1 * ns[g, i]
-            p1[g, i] = q1
-            p2[g, i] = q1 + s2 * ns[g, i]
+        q0, q1, q2 = c[0] - s1 * n0, c[1] - s1 * n1, c[2] - s1 * n2
+        p1[g, 0], p1[g, 1], p1[g, 2] = q0, q1, q2
+        p2[g, 0], p2[g, 1], p2[g, 2] = q0 + s2 * n0, q1 + s2 * n1, q2 + s2 * n2
     n = 0
     for g in range(k):
         b1, b2 = gi[g, I_B1], gi[g, I_B2]
         c1c = subtree_com[gi[g, I_ROOT1]]
         c2c = subtree_com[gi[g, I_ROOT2]]
-        w1, w2 = cvel[b1], cvel[b2]  # angular (0:3), linear at the subtree com (3:6)
-        d10, d11, d12 = p1[g, 0] - c1c[0], p1[g, 1] - c1c[1], p1[g, 2] - c1c[2]
-        d20, d21, d22 = p2[g, 0] - c2c[0], p2[g, 1] - c2c[1], p2[g, 2] - c2c[2]
-        vr0 = (w1[3] + (w1[1] * d12 - w1[2] * d11)) - (w2[3] + (w2[1] * d22 - w2[2] * d21))
-        vr1 = (w1[4] + (w1[2] * d10 - w1[0] * d12)) - (w2[4] + (w2[2] * d20 - w2[0] * d22))
-        vr2 = (w1[5] + (w1[0] * d11 - w1[1] * d10)) - (w2[5] + (w2[0] * d21 - w2[1] * d20))
+        # angular (0:3), linear velocity at the subtree com (3:6)
+        wa0, wa1, wa2, ua0, ua1, ua2 = cvel[b1, 0], cvel[b1, 1], cvel[b1, 2], cvel[b1, 3], cvel[b1, 4], cvel[b1, 5]
+        wb0, wb1, wb2, ub0, ub1, ub2 = cvel[b2, 0], cvel[b2, 1], cvel[b2, 2], cvel[b2, 3], cvel[b2, 4], cvel[b2, 5]
+        c10, c11, c12 = c1c[0], c1c[1], c1c[2]
+        c20, c21, c22 = c2c[0], c2c[1], c2c[2]
+        q10, q11, q12 = p1[g, 0], p1[g, 1], p1[g, 2]
+        q20, q21, q22 = p2[g, 0], p2[g, 1], p2[g, 2]
+        d10, d11, d12 = q10 - c10, q11 - c11, q12 - c12
+        d20, d21, d22 = q20 - c20, q21 - c21, q22 - c22
+        vr0 = (ua0 + (wa1 * d12 - wa2 * d11)) - (ub0 + (wb1 * d22 - wb2 * d21))
+        vr1 = (ua1 + (wa2 * d10 - wa0 * d12)) - (ub1 + (wb2 * d20 - wb0 * d22))
+        vr2 = (ua2 + (wa0 * d11 - wa1 * d10)) - (ub2 + (wb0 * d21 - wb1 * d20))
         p = gi[g, I_PAIR]
         if have_last[p]:
             a0 = (vr0 - last_v[p, 0] - last_dv[p, 0]) / dt
@@ -185,55 +190,35 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
         last_dv[p, 0], last_dv[p, 1], last_dv[p, 2] = 0.0, 0.0, 0.0
         have_last[p] = True
         n0, n1, n2 = ns[g, 0], ns[g, 1], ns[g, 2]
+        xx = xs[g]
         xd = -(vr0 * n0 + vr1 * n1 + vr2 * n2)
         xdd = -(a0 * n0 + a1 * n1 + a2 * n2)
         reach = factor * (_nonneg(xd) * dt + 0.5 * _nonneg(xdd) * dt * dt)  # closing_distance
-        if not (xs[g] > -reach or required[p]):
+        if not (xx > -reach or required[p]):
             continue
         pair[n] = p
-        x[n] = xs[g]
-        for i in range(3):
-            nrm[n, i] = ns[g, i]
-            point[n, i] = 0.5 * (p1[g, i] + p2[g, i])
+        x[n] = xx
+        nrm[n, 0], nrm[n, 1], nrm[n, 2] = n0, n1, n2
+        point[n, 0], point[n, 1], point[n, 2] = 0.5 * (q10 + q20), 0.5 * (q11 + q21), 0.5 * (q12 + q22)
         v_rel[n, 0], v_rel[n, 1], v_rel[n, 2] = vr0, vr1, vr2
         a_ext[n, 0], a_ext[n, 1], a_ext[n, 2] = a0, a1, a2
-        xi1, xi2 = xipos[b1], xipos[b2]
+        x10, x11, x12 = xipos[b1, 0], xipos[b1, 1], xipos[b1, 2]
+        x20, x21, x22 = xipos[b2, 0], xipos[b2, 1], xipos[b2, 2]
         _inverse_inertia(W, n, ximat[b1], gf[g, F_INVI1], gf[g, F_INVI1 + 1], gf[g, F_INVI1 + 2],
-                         p1[g, 0] - xi1[0], p1[g, 1] - xi1[1], p1[g, 2] - xi1[2], gf[g, F_INV_M1], False)
+                         q10 - x10, q11 - x11, q12 - x12, gf[g, F_INV_M1], False)
         if gi[g, I_FREE2]:
             _inverse_inertia(W, n, ximat[b2], gf[g, F_INVI2], gf[g, F_INVI2 + 1], gf[g, F_INVI2 + 2],
-                             p2[g, 0] - xi2[0], p2[g, 1] - xi2[1], p2[g, 2] - xi2[2], gf[g, F_INV_M2], True)
+                             q20 - x20, q21 - x21, q22 - x22, gf[g, F_INV_M2], True)
         wc = gf[g, F_INV_M1] + gf[g, F_INV_M2]
         W_com[n, 0, 0], W_com[n, 1, 1], W_com[n, 2, 2] = wc, wc, wc
-        d10, d11, d12 = xi1[0] - c1c[0], xi1[1] - c1c[1], xi1[2] - c1c[2]
-        d20, d21, d22 = xi2[0] - c2c[0], xi2[1] - c2c[1], xi2[2] - c2c[2]
-        v_com[n, 0] = (w1[3] + (w1[1] * d12 - w1[2] * d11)) - (w2[3] + (w2[1] * d22 - w2[2] * d21))
-        v_com[n, 1] = (w1[4] + (w1[2] * d10 - w1[0] * d12)) - (w2[4] + (w2[2] * d20 - w2[0] * d22))
-        v_com[n, 2] = (w1[5] + (w1[0] * d11 - w1[1] * d10)) - (w2[5] + (w2[0] * d21 - w2[1] * d20))
+        d10, d11, d12 = x10 - c10, x11 - c11, x12 - c12
+        d20, d21, d22 = x20 - c20, x21 - c21, x22 - c22
+        v_com[n, 0] = (ua0 + (wa1 * d12 - wa2 * d11)) - (ub0 + (wb1 * d22 - wb2 * d21))
+        v_com[n, 1] = (ua1 + (wa2 * d10 - wa0 * d12)) - (ub1 + (wb2 * d20 - wb0 * d22))
+        v_com[n, 2] = (ua2 + (wa0 * d11 - wa1 * d10)) - (ub2 + (wb0 * d21 - wb1 * d20))
         n += 1
     return ERR_NONE, pair[:n], x[:n], nrm[:n], point[:n], v_rel[:n], v_com[:n], W[:n], W_com[:n], a_ext[:n], \
         p1, p2
-
-
-@njit(cache=True, error_model="numpy")
-def held(pair, force, active, settled, t_onset, tau_est, t_next, settle_after, steps_min, dt):
-    """(hit (n,), keep (n,), number of hit rows, number of hit rows not kept):
-    the rows with a nonzero force, and those of them whose force is held
-    into the next step (:func:`engines.mujoco.adapter.held_forces`)."""
-    n = pair.shape[0]
-    hit = np.empty(n, np.bool_)
-    keep = np.empty(n, np.bool_)
-    n_hit = 0
-    n_kept = 0
-    for r in range(n):
-        h = force[r, 0] != 0.0 or force[r, 1] != 0.0 or force[r, 2] != 0.0
-        p = pair[r]
-        hit[r] = h
-        keep[r] = h and active[p] and (settled[p] or (t_next - t_onset[p]) > settle_after * tau_est[p]
-                                       or tau_est[p] >= steps_min * dt)
-        n_hit += h
-        n_kept += keep[r]
-    return hit, keep, n_hit, n_hit - n_kept
 
 
 @njit(cache=True, error_model="numpy")
@@ -247,27 +232,34 @@ def free_forces(gi, group_of, pair, force, hit, keep, only_unheld, p1, p2, xipos
     contact point, the lever arm r from its centre of mass in world axes
     (held fixed over the step)."""
     n = pair.shape[0]
-    m = 0
+    m1 = 0
+    m2 = 0
     for r in range(n):
         g = group_of[pair[r]]
         if g >= 0 and hit[r] and not (only_unheld and keep[r]):
-            m += 1 + (gi[g, I_FREE2] != 0)
-    bodies = np.empty((m, 3), np.int64)
-    F = np.empty((m, 3))
-    arm = np.empty((m, 3))
-    j = 0
-    for side in range(2):
-        for r in range(n):
-            g = group_of[pair[r]]
-            if g < 0 or not hit[r] or (only_unheld and keep[r]) or (side == 1 and not gi[g, I_FREE2]):
-                continue
-            b = gi[g, I_B1 + side]
-            bodies[j, 0], bodies[j, 1], bodies[j, 2] = b, gi[g, I_JNT1 + side], gi[g, I_DOF1 + side]
-            pt = p1[g] if side == 0 else p2[g]
-            for i in range(3):
-                F[j, i] = force[r, i] if side == 0 else -force[r, i]
-                arm[j, i] = pt[i] - xipos[b, i]
-            j += 1
+            m1 += 1
+            m2 += gi[g, I_FREE2] != 0
+    bodies = np.empty((m1 + m2, 3), np.int64)
+    F = np.empty((m1 + m2, 3))
+    arm = np.empty((m1 + m2, 3))
+    j1 = 0
+    j2 = m1
+    for r in range(n):
+        g = group_of[pair[r]]
+        if g < 0 or not hit[r] or (only_unheld and keep[r]):
+            continue
+        b = gi[g, I_B1]
+        bodies[j1, 0], bodies[j1, 1], bodies[j1, 2] = b, gi[g, I_JNT1], gi[g, I_DOF1]
+        F[j1, 0], F[j1, 1], F[j1, 2] = force[r, 0], force[r, 1], force[r, 2]
+        arm[j1, 0], arm[j1, 1], arm[j1, 2] = p1[g, 0] - xipos[b, 0], p1[g, 1] - xipos[b, 1], p1[g, 2] - xipos[b, 2]
+        j1 += 1
+        if gi[g, I_FREE2]:
+            b = gi[g, I_B2]
+            bodies[j2, 0], bodies[j2, 1], bodies[j2, 2] = b, gi[g, I_JNT2], gi[g, I_DOF2]
+            F[j2, 0], F[j2, 1], F[j2, 2] = -force[r, 0], -force[r, 1], -force[r, 2]
+            arm[j2, 0], arm[j2, 1] = p2[g, 0] - xipos[b, 0], p2[g, 1] - xipos[b, 1]
+            arm[j2, 2] = p2[g, 2] - xipos[b, 2]
+            j2 += 1
     return bodies, F, arm
 
 
@@ -340,3 +332,37 @@ def held_dv(last_dv, pair, keep, W, force, dt):
         P0, P1, P2 = force[r, 0] * dt, force[r, 1] * dt, force[r, 2] * dt
         for i in range(3):
             last_dv[p, i] += (W[r, i, 0] * P0 + W[r, i, 1] * P1) + W[r, i, 2] * P2
+
+
+@njit(cache=True, error_model="numpy")
+def after_step(gi, group_of, pair, force, active, settled, t_onset, tau_est, t_next, settle_after, steps_min,
+               mgr_dt, p1, p2, xipos, W, last_dv, dt):
+    """After the manager's step, for its rows ``pair`` (n,) with forces on
+    body 1 ``force`` (n, 3) [N] and inverse inertias W (n, 3, 3): which rows
+    have a force (``hit``) and which of them hold it into the next step
+    (``keep``: :func:`engines.mujoco.adapter.held_forces` from the
+    manager's active, settled, t_onset, tau_est; t_next = the step's end),
+    and :func:`free_forces` of the group's rows with a force. When every
+    force is held (no impulse leaves the next step's a_ext, so there is no
+    cross term), also :func:`held_dv`; else the adapter calls it after
+    :func:`velocity_change`.
+
+    Returns (hit, keep, n_hit, n_unheld, bodies, F, r)."""
+    n = pair.shape[0]
+    hit = np.empty(n, np.bool_)
+    keep = np.empty(n, np.bool_)
+    n_hit = 0
+    n_kept = 0
+    for r in range(n):
+        h = force[r, 0] != 0.0 or force[r, 1] != 0.0 or force[r, 2] != 0.0
+        p = pair[r]
+        kp = h and active[p] and (settled[p] or (t_next - t_onset[p]) > settle_after * tau_est[p]
+                                  or tau_est[p] >= steps_min * mgr_dt)
+        hit[r] = h
+        keep[r] = kp
+        n_hit += h
+        n_kept += kp
+    bodies, F, arm = free_forces(gi, group_of, pair, force, hit, keep, False, p1, p2, xipos)
+    if n_hit == n_kept:
+        held_dv(last_dv, pair, keep, W, force, dt)
+    return hit, keep, n_hit, n_hit - n_kept, bodies, F, arm

@@ -420,6 +420,7 @@ class MujocoAdapter(EngineAdapter):
             self._gi, self._gf = self._fast.packed(model)
             self._group_of = np.full(P, -1, np.int64)  # position in the free group of each pair (-1: slow)
             self._group_of[self._fast.index] = np.arange(self._fast.index.size)
+            self._no_points = np.zeros((0, 3))  # p1, p2 when there is no free group
         self.manager.set_body_probe(self._probe)
         #: number of engine steps run through :meth:`step`
         self.steps = 0
@@ -637,23 +638,29 @@ class MujocoAdapter(EngineAdapter):
         self.last_forces = out if kin.pair.size else None
         pair = np.asarray(out.pair, dtype=np.int64)
         force = np.asarray(out.force, dtype=float).reshape(-1, 3)
-        # held_forces, for the rows with a force
-        hit, keep, n_hit, n_unheld = K.held(pair, force, mgr.active, mgr.settled, mgr.t_onset, mgr.tau_est,
-                                            float(d.time) + dt, SETTLE_AFTER_DURATIONS, STEPS_PER_CONTACT_MIN, mgr.dt)
+        # held_forces, the free group's forces to apply, and the held pairs' own share of
+        # the next a_ext if no impulse leaves it (_compute's bookkeeping)
+        hit, keep, n_hit, n_unheld, *todo = K.after_step(
+            self._gi, self._group_of, pair, force, mgr.active, mgr.settled, mgr.t_onset, mgr.tau_est,
+            float(d.time) + dt, SETTLE_AFTER_DURATIONS, STEPS_PER_CONTACT_MIN, mgr.dt,
+            p1 if p1 is not None else self._no_points, p2 if p2 is not None else self._no_points, d.xipos,
+            kin.W, self._last_dv, dt)
         if not n_hit:
             return
-        Q = np.zeros(m.nv) if n_unheld else None  # the impulses that leave the next step's a_ext
+        if todo[0].shape[0]:
+            self._apply_fast = tuple(todo)
+        if not n_unheld:
+            if self._slow:
+                self._slow_forces(pair, force, hit, keep, points, None)
+            return
+        Q = np.zeros(m.nv)  # the impulses that leave the next step's a_ext
         if fast is not None:
-            todo = K.free_forces(self._gi, self._group_of, pair, force, hit, keep, False, p1, p2, d.xipos)
-            if todo[0].shape[0]:
-                self._apply_fast = todo
-                if n_unheld:
-                    sub = K.free_forces(self._gi, self._group_of, pair, force, hit, keep, True, p1, p2, d.xipos)
-                    K.apply(Q, d.xipos, d.xanchor, d.xmat, *sub)
+            sub = K.free_forces(self._gi, self._group_of, pair, force, hit, keep, True, p1, p2, d.xipos)
+            K.apply(Q, d.xipos, d.xanchor, d.xmat, *sub)
         if self._slow:
             self._slow_forces(pair, force, hit, keep, points, Q)
-        Qdt = None if Q is None else Q * dt
-        if Qdt is not None and np.any(Qdt):  # _cross_dv
+        Qdt = Q * dt
+        if np.any(Qdt):  # _cross_dv
             dq = np.zeros((1, m.nv))
             mujoco.mj_solveM(m, d, dq, Qdt.reshape(1, -1))
             dq = dq[0]
