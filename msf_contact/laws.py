@@ -230,7 +230,13 @@ class MSFLaw(ForceLaw):
         w_y = cf.omega_y_equivalent(m, P_bx, mod.G, tg_G)  # (84)/(86)
         w_z = cf.omega_y_equivalent(m, P_ax, mod.G, tg_G)
         n = v.shape[0]
-        full = lambda a: np.broadcast_to(np.asarray(a, dtype=float), (n,)).copy()  # noqa: E731
+
+        def full(a):
+            """a broadcast to a new (n,) float array (by assignment: the cheapest broadcast)."""
+            out = np.empty(n)
+            out[...] = a
+            return out
+
         return dict(omega_x=full(omega_x), omega_y=full(w_y), omega_z=full(w_z), E=full(mod.E),
                     eta_E=full(mod.E_loss / omega_x), G=full(mod.G), eta_Gy=full(mod.G_loss / w_y),
                     eta_Gz=full(mod.G_loss / w_z), x_max_pred=full(x_m), v_n0=full(v), mass=full(m))
