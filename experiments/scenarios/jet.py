@@ -928,6 +928,7 @@ class JetPool(abc.ABC):
         self.aggregates = JetAggregates(spec.bins, spec.plate.size, spec.plate.strength, len(sizes))
         self._g = np.array([0.0, 0.0, -spec.gravity])
         self._v_park = spec.park_velocity()
+        self._v_park_rows = np.tile(self._v_park, (self.n, 1))  # (n, 3), indexed like park
         self._impacts = _ImpactBuffer(self.aggregates)
         self._timeout = spec.flight_timeout()
         self._z_away = spec.nozzle.position[2] + 0.5 * PARK_DISTANCE  # a particle above this flew off upward
@@ -1104,12 +1105,12 @@ class JetPool(abc.ABC):
         parked = self.state == PARKED
         idx = np.flatnonzero(parked & (t - self.t_pinned >= self._repin_after))
         if idx.size:
-            self._place(idx, self.park[idx], np.broadcast_to(self._v_park, (idx.size, 3)))
+            self._place(idx, self.park[idx], self._v_park_rows[idx])
             self.t_pinned[idx] = t
         self._pin_min = float(self.t_pinned[parked].min()) if np.any(parked) else math.inf
 
     def _park(self, idx: np.ndarray, t: float) -> None:
-        self._place(idx, self.park[idx], np.broadcast_to(self._v_park, (idx.size, 3)))
+        self._place(idx, self.park[idx], self._v_park_rows[idx])
         self.state[idx] = PARKED
         self.t_pinned[idx] = t
         self._pin_min = min(self._pin_min, t)
