@@ -652,25 +652,25 @@ class ContactManager:
                           ("W", W), ("W_com", Wc), ("a_ext", a)):
             if arr.shape[0] != k:
                 raise ValueError(f"kinematics.{name} has {arr.shape[0]} rows; expected {k} (len(pair))")
-        code, row = K.check(pair, len(self.pairs), x, n, point, v, vc, W, Wc, a, self.active, self.J, self._seen)
+        n_unit = np.empty((k, 3))  # the normals renormalised (they are unit to 1e-6)
+        code, row = K.check(pair, len(self.pairs), x, n, point, v, vc, W, Wc, a, self.active, self.J, self._seen,
+                            n_unit, self._point)
         if code:
             self._invalid(code, row, pair, x, n, point, v, vc, W, Wc, a)
-        if k:
-            n = n / np.sqrt(np.einsum("ij,ij->i", n, n))[:, None]
+        n = n_unit
         t0 = float(kin.t)
-        force = np.zeros((k, 3))
-        self._point[pair] = point
         info = {"rows": k, "substeps": 0, "segments": 0, "onsets": 0, "ends": 0, "settled": 0,
                 "settled_iterations": 0}
         if self._all_kernel:
-            krows = slice(None)
+            force = self._step_compiled(pair, x, n, v, vc, W, Wc, a, t0, info)
+            force /= self.dt
         else:
+            force = np.zeros((k, 3))
             krows = np.flatnonzero(self._kg_of_pair[pair] >= 0)
-        if self._all_kernel or krows.size:
-            P = self._step_compiled(pair[krows], x[krows], n[krows], v[krows], vc[krows], W[krows], Wc[krows],
-                                    a[krows], t0, info)
-            force[krows] = P / self.dt
-        if not self._all_kernel:
+            if krows.size:
+                P = self._step_compiled(pair[krows], x[krows], n[krows], v[krows], vc[krows], W[krows], Wc[krows],
+                                        a[krows], t0, info)
+                force[krows] = P / self.dt
             for g, law in self._groups.items():
                 if self._kernel_law[g] is not None:
                     continue

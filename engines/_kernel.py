@@ -695,12 +695,13 @@ def finale(pairs, n, W, Wc, settled, in_c, y, dt, timing, kg, LC, active, x_stat
 
 
 @jit
-def check(pair, P, x, n, point, v, vc, W, Wc, a, active, Jst, seen):
+def check(pair, P, x, n, point, v, vc, W, Wc, a, active, Jst, seen, n_unit, point_state):
     """Validate the kinematics of one step (ContactManager.step's contract):
     returns (code, row): 0 ok; 1 a pair index outside [0, P); 2 a pair listed
     twice; 3 a non-finite value (row); 4 a normal that is not a unit vector;
     5 a required pair (in contact, or with a timing correction) not listed.
-    seen (P,) bool: scratch."""
+    seen (P,) bool: scratch. When valid, n_unit (k, 3) gets the normals
+    renormalised and point_state (P, 3) the rows' contact points."""
     k = pair.shape[0]
     for q in range(P):
         seen[q] = False
@@ -722,6 +723,9 @@ def check(pair, P, x, n, point, v, vc, W, Wc, a, active, Jst, seen):
         nn = math.sqrt(n[r, 0] ** 2 + n[r, 1] ** 2 + n[r, 2] ** 2)
         if abs(nn - 1.0) > 1e-6:
             return 4, r
+        for i in range(3):
+            n_unit[r, i] = n[r, i] / nn
+            point_state[q, i] = point[r, i]
     for q in range(P):
         if (active[q] or Jst[q, 0] != 0.0 or Jst[q, 1] != 0.0 or Jst[q, 2] != 0.0) and not seen[q]:
             return 5, q
