@@ -591,7 +591,7 @@ class ContactManager:
         """Pair indices an adapter must list as candidates in the next step,
         whatever their gap: those in contact and those with a timing
         correction to remove."""
-        return np.flatnonzero(self.active | np.any(self.J != 0.0, axis=1))
+        return K.required(self.active, self.J)
 
     def set_body_probe(self, probe: Callable[[int], dict] | None) -> None:
         """Install the adapter's body-level probe (see the class docstring)."""

@@ -751,3 +751,17 @@ def peak_pressures(code, lc, oc, p, x_m, x_F, F_max, buf):
         Pc = 1.5 * buf[0] / _area(lc, xa)
     PcF = 1.5 * F_max / _area(lc, x_F) if x_F > 0 else 0.0
     return Pc, PcF
+
+
+@njit(cache=True)
+def required(active, Jst):
+    """Indices of the pairs in contact or with a timing correction to remove
+    (ContactManager.required_pairs), (m,) int64."""
+    P = active.shape[0]
+    out = np.empty(P, np.int64)
+    m = 0
+    for q in range(P):
+        if active[q] or Jst[q, 0] != 0.0 or Jst[q, 1] != 0.0 or Jst[q, 2] != 0.0:
+            out[m] = q
+            m += 1
+    return out[:m].copy()
