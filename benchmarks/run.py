@@ -90,6 +90,9 @@ def markdown(records: list[dict], mach: dict, command: str) -> str:
         lines += ["## Reference solver and closed forms", "", "| what | value |", "|---|---:|"]
         for r in ref:
             lines.append(f"| self-consistent impact at {r['angle_deg']:g} deg [ms] | {_ms(r['time_per_impact_s'])} |")
+        for r in ref[:1]:
+            if r.get("first_call_s") is not None:
+                lines.append(f"| first call, cold caches (builds the onset table) [s] | {r['first_call_s']:.2f} |")
         for r in cfs:
             lines.append(f"| {r['function']} [cases/s] | {r['cases_per_s']:.3g} |")
         lines.append("")
