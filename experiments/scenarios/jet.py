@@ -1218,11 +1218,13 @@ class JetPool(abc.ABC):
         # ballistic from the exit (first impacts)
         s = (t_on - self.t_emit[idx])[:, None]
         v_emit = self.v_emit[idx]
-        v_in = v_emit + self._g * s
-        centre = self.p_emit[idx] + v_emit * s + 0.5 * self._g * s * s
-        vx, vy, vz = v_in.T
-        speed_b = np.sqrt(vx * vx + vy * vy + vz * vz)
-        vn_b = -(vx * normal[:, 0] + vy * normal[:, 1] + vz * normal[:, 2])
+        if self.spec.gravity > 0:
+            v_in = v_emit + self._g * s
+            centre = self.p_emit[idx] + v_emit * s + 0.5 * self._g * s * s
+        else:
+            v_in, centre = v_emit, self.p_emit[idx] + v_emit * s
+        speed_b = np.sqrt((v_in * v_in).sum(axis=1))
+        vn_b = -(v_in * normal).sum(axis=1)
         point = np.where(first[:, None], centre - self.radius[idx][:, None] * normal, p_rec)
         speed = np.where(first, speed_b, np.hypot(vn_rec, vt_rec))
         vn = np.where(first, vn_b, vn_rec)
