@@ -1077,7 +1077,10 @@ class JetPool(abc.ABC):
         idx = np.array([i for i, _, _ in launch])
         a = np.array([(e.t, *e.p, *e.v, late) for _, e, late in launch])  # (k, 8)
         p0, v0, late = a[:, 1:4], a[:, 4:7], a[:, 7:8]
-        self._place(idx, p0 + v0 * late + 0.5 * self._g * late * late, v0 + self._g * late)
+        if self.spec.gravity > 0:
+            self._place(idx, p0 + v0 * late + 0.5 * self._g * late * late, v0 + self._g * late)
+        else:
+            self._place(idx, p0 + v0 * late, v0)
         self.state[idx] = FLIGHT
         self.emission_id[idx] = self.counts.emitted + np.arange(idx.size)
         self.t_emit[idx] = a[:, 0]
