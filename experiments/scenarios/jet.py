@@ -929,6 +929,7 @@ class JetPool(abc.ABC):
         self._g = np.array([0.0, 0.0, -spec.gravity])
         self._v_park = spec.park_velocity()
         self._v_park_rows = np.tile(self._v_park, (self.n, 1))  # (n, 3), indexed like park
+        self._half_mass = 0.5 * self.mass
         self._impacts = _ImpactBuffer(self.aggregates)
         self._timeout = spec.flight_timeout()
         self._z_away = spec.nozzle.position[2] + 0.5 * PARK_DISTANCE  # a particle above this flew off upward
@@ -1184,13 +1185,15 @@ class JetPool(abc.ABC):
         out: list[dict | None] = []
         plate, where, idx, repeat, deflected, flat = [], [], [], [], [], []
         state, defl, n = self.state, self.deflected, self.n
+        in_order = bool(self.pp_pairs)  # flags per record in order: a pp record may precede a plate one
         for rec in recs:
             d = rec.inputs
             pair = int(d["pair"])
             if pair < n:
-                # a repeat: the particle's record has arrived before (also earlier in this step) or it was parked
-                repeat.append(state[pair] != FLIGHT or pair in idx)
-                deflected.append(bool(defl[pair]))
+                if in_order:
+                    # a repeat: the particle's record arrived before (also earlier in this step) or it was parked
+                    repeat.append(state[pair] != FLIGHT or pair in idx)
+                    deflected.append(bool(defl[pair]))
                 idx.append(pair)
                 plate.append(rec)
                 where.append(len(out))
@@ -1212,8 +1215,16 @@ class JetPool(abc.ABC):
         if not plate:
             return 0, out if rows else []
         k = len(plate)
-        idx = np.array(idx)
-        repeat, deflected = np.array(repeat, bool), np.array(deflected, bool)
+        if in_order:
+            repeat, deflected = np.array(repeat, bool), np.array(deflected, bool)
+            idx = np.array(idx)
+        else:
+            twice = len(set(idx)) < k
+            idx = np.array(idx)
+            repeat, deflected = state[idx] != FLIGHT, defl[idx]
+            if twice:  # a second record of a particle within the step is a repeat too
+                for m in range(1, k):
+                    repeat[m] |= bool(np.any(idx[:m] == idx[m]))
         first = ~(repeat | deflected)
         f = np.array(flat, dtype=float).reshape(k, 14)
         normal, p_rec = f[:, 0:3], f[:, 3:6]
@@ -1226,15 +1237,20 @@ class JetPool(abc.ABC):
             centre = self.p_emit[idx] + v_emit * s + 0.5 * self._g * s * s
         else:
             v_in, centre = v_emit, self.p_emit[idx] + v_emit * s
-        speed_b = np.sqrt((v_in * v_in).sum(axis=1))
-        vn_b = -(v_in * normal).sum(axis=1)
-        point = np.where(first[:, None], centre - self.radius[idx][:, None] * normal, p_rec)
-        speed = np.where(first, speed_b, np.hypot(vn_rec, vt_rec))
-        vn = np.where(first, vn_b, vn_rec)
+        speed = np.sqrt((v_in * v_in).sum(axis=1))
+        vn = -(v_in * normal).sum(axis=1)
+        point = centre - self.radius[idx][:, None] * normal
         # the angle to the plate [deg] with math's asin/atan2 (numpy's may differ in the last bit)
-        angle = np.array([math.degrees(math.asin(min(1.0, max(0.0, a / b)))) if fi else math.degrees(math.atan2(a, c))
-                          for fi, a, b, c in zip(first.tolist(), vn.tolist(), speed.tolist(), vt_rec.tolist())])
-        E_in = 0.5 * self.mass[idx] * speed * speed
+        if first.all():
+            angle = np.array([math.degrees(math.asin(min(1.0, max(0.0, a / b))))
+                              for a, b in zip(vn.tolist(), speed.tolist())])
+        else:  # the record's own speeds and point for the others
+            point = np.where(first[:, None], point, p_rec)
+            speed = np.where(first, speed, np.hypot(vn_rec, vt_rec))
+            vn = np.where(first, vn, vn_rec)
+            angle = np.array([math.degrees(math.asin(min(1.0, max(0.0, a / b)))) if fi else math.degrees(math.atan2(a, c))
+                              for fi, a, b, c in zip(first.tolist(), vn.tolist(), speed.tolist(), vt_rec.tolist())])
+        E_in = self._half_mass[idx] * speed * speed
         state[idx] = DONE
         self.counts.impacts += k
         self._impacts.append({
