@@ -124,6 +124,8 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
     xs = np.empty(k)
     ns = np.empty((k, 3))
     # detection first, for all pairs: refuse before changing any state
+    plane_g = -1
+    pn0, pn1, pn2 = 0.0, 0.0, 1.0
     for g in range(k):
         c = geom_xpos[gi[g, I_G1]]
         o = geom_xpos[gi[g, I_G2]]
@@ -133,16 +135,20 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
             return ERR_NONFINITE, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
                 W_com[:0], a_ext[:0], p1, p2
         if gi[g, I_PLANE]:
-            mat = geom_xmat[gi[g, I_G2]]
-            u0, u1, u2 = mat[2], mat[5], mat[8]
-            if not (np.isfinite(u0) and np.isfinite(u1) and np.isfinite(u2)):
-                return ERR_NONFINITE, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
-                    W_com[:0], a_ext[:0], p1, p2
-            ln = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
-            if not ln > 0.0:
-                return ERR_NONFINITE, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
-                    W_com[:0], a_ext[:0], p1, p2
-            n0, n1, n2 = u0 / ln, u1 / ln, u2 / ln
+            g2 = gi[g, I_G2]
+            if g2 != plane_g:  # the plane's unit normal, once per plane in a row of pairs
+                mat = geom_xmat[g2]
+                u0, u1, u2 = mat[2], mat[5], mat[8]
+                if not (np.isfinite(u0) and np.isfinite(u1) and np.isfinite(u2)):
+                    return ERR_NONFINITE, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
+                        W_com[:0], a_ext[:0], p1, p2
+                ln = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+                if not ln > 0.0:
+                    return ERR_NONFINITE, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
+                        W_com[:0], a_ext[:0], p1, p2
+                pn0, pn1, pn2 = u0 / ln, u1 / ln, u2 / ln
+                plane_g = g2
+            n0, n1, n2 = pn0, pn1, pn2
             dist = (c[0] - o[0]) * n0 + (c[1] - o[1]) * n1 + (c[2] - o[2]) * n2
             xx = R - dist
         else:
