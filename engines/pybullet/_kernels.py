@@ -50,23 +50,37 @@ def rotations(q):
     return R
 
 
-@njit(cache=True)
-def _add_free_W(W, R, inv_m, inv_I, r, Iinv, T):
-    """W += 1/m Id - [r]x I^-1 [r]x (3, 3), I^-1 = R diag(inv_I) R^T; Iinv, T: (3, 3) scratch."""
-    for a in range(3):
-        for b in range(3):
-            Iinv[a, b] = R[a, 0] * inv_I[0] * R[b, 0] + R[a, 1] * inv_I[1] * R[b, 1] + R[a, 2] * inv_I[2] * R[b, 2]
+@njit(cache=True, inline="always")
+def _add_free_W(W, k, rot, j, inv_m, inv_I, r):
+    """W[k] += 1/m Id - [r]x I^-1 [r]x (3, 3) of body j, I^-1 = R diag(inv_I) R^T."""
+    i0, i1, i2 = inv_I[j, 0], inv_I[j, 1], inv_I[j, 2]
+    m00 = rot[j, 0, 0] * i0 * rot[j, 0, 0] + rot[j, 0, 1] * i1 * rot[j, 0, 1] + rot[j, 0, 2] * i2 * rot[j, 0, 2]
+    m01 = rot[j, 0, 0] * i0 * rot[j, 1, 0] + rot[j, 0, 1] * i1 * rot[j, 1, 1] + rot[j, 0, 2] * i2 * rot[j, 1, 2]
+    m02 = rot[j, 0, 0] * i0 * rot[j, 2, 0] + rot[j, 0, 1] * i1 * rot[j, 2, 1] + rot[j, 0, 2] * i2 * rot[j, 2, 2]
+    m10 = rot[j, 1, 0] * i0 * rot[j, 0, 0] + rot[j, 1, 1] * i1 * rot[j, 0, 1] + rot[j, 1, 2] * i2 * rot[j, 0, 2]
+    m11 = rot[j, 1, 0] * i0 * rot[j, 1, 0] + rot[j, 1, 1] * i1 * rot[j, 1, 1] + rot[j, 1, 2] * i2 * rot[j, 1, 2]
+    m12 = rot[j, 1, 0] * i0 * rot[j, 2, 0] + rot[j, 1, 1] * i1 * rot[j, 2, 1] + rot[j, 1, 2] * i2 * rot[j, 2, 2]
+    m20 = rot[j, 2, 0] * i0 * rot[j, 0, 0] + rot[j, 2, 1] * i1 * rot[j, 0, 1] + rot[j, 2, 2] * i2 * rot[j, 0, 2]
+    m21 = rot[j, 2, 0] * i0 * rot[j, 1, 0] + rot[j, 2, 1] * i1 * rot[j, 1, 1] + rot[j, 2, 2] * i2 * rot[j, 1, 2]
+    m22 = rot[j, 2, 0] * i0 * rot[j, 2, 0] + rot[j, 2, 1] * i1 * rot[j, 2, 1] + rot[j, 2, 2] * i2 * rot[j, 2, 2]
+    r0, r1, r2 = r[0], r[1], r[2]
     # T = [r]x I^-1, rows of [r]x: (0, -r2, r1), (r2, 0, -r0), (-r1, r0, 0)
-    for b in range(3):
-        T[0, b] = -r[2] * Iinv[1, b] + r[1] * Iinv[2, b]
-        T[1, b] = r[2] * Iinv[0, b] - r[0] * Iinv[2, b]
-        T[2, b] = -r[1] * Iinv[0, b] + r[0] * Iinv[1, b]
+    t00, t01, t02 = -r2 * m10 + r1 * m20, -r2 * m11 + r1 * m21, -r2 * m12 + r1 * m22
+    t10, t11, t12 = r2 * m00 - r0 * m20, r2 * m01 - r0 * m21, r2 * m02 - r0 * m22
+    t20, t21, t22 = -r1 * m00 + r0 * m10, -r1 * m01 + r0 * m11, -r1 * m02 + r0 * m12
     # W -= T [r]x, columns of [r]x: (0, r2, -r1), (-r2, 0, r0), (r1, -r0, 0)
-    for a in range(3):
-        W[a, 0] -= T[a, 1] * r[2] - T[a, 2] * r[1]
-        W[a, 1] -= -T[a, 0] * r[2] + T[a, 2] * r[0]
-        W[a, 2] -= T[a, 0] * r[1] - T[a, 1] * r[0]
-        W[a, a] += inv_m
+    W[k, 0, 0] -= t01 * r2 - t02 * r1
+    W[k, 0, 1] -= -t00 * r2 + t02 * r0
+    W[k, 0, 2] -= t00 * r1 - t01 * r0
+    W[k, 1, 0] -= t11 * r2 - t12 * r1
+    W[k, 1, 1] -= -t10 * r2 + t12 * r0
+    W[k, 1, 2] -= t10 * r1 - t11 * r0
+    W[k, 2, 0] -= t21 * r2 - t22 * r1
+    W[k, 2, 1] -= -t20 * r2 + t22 * r0
+    W[k, 2, 2] -= t20 * r1 - t21 * r0
+    W[k, 0, 0] += inv_m[j]
+    W[k, 1, 1] += inv_m[j]
+    W[k, 2, 2] += inv_m[j]
 
 
 @njit(cache=True)
@@ -93,8 +107,6 @@ def fast_rows(f, j1, j2, s1, r1, plane, s2, size2, com, rot, v, w, b_free, inv_m
     rb = np.empty(3)
     vr = np.empty(3)
     a = np.empty(3)
-    Iinv = np.empty((3, 3))
-    T = np.empty((3, 3))
     for q in range(f.shape[0]):
         i = f[q]
         b1, b2 = j1[q], j2[q]
@@ -160,9 +172,9 @@ def fast_rows(f, j1, j2, s1, r1, plane, s2, size2, com, rot, v, w, b_free, inv_m
                 o_W[k, d, e] = 0.0
                 o_Wc[k, d, e] = 0.0
             o_Wc[k, d, d] = inv_m[b1] + inv_m[b2]
-        _add_free_W(o_W[k], rot[b1], inv_m[b1], inv_I[b1], ra, Iinv, T)
+        _add_free_W(o_W, k, rot, b1, inv_m, inv_I, ra)
         if b_free[b2]:
-            _add_free_W(o_W[k], rot[b2], inv_m[b2], inv_I[b2], rb, Iinv, T)
+            _add_free_W(o_W, k, rot, b2, inv_m, inv_I, rb)
         k += 1
     return k, OK, -1
 
