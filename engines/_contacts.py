@@ -520,6 +520,7 @@ class ContactManager:
         self._kg_of_pair = np.array([kidx.get(g, -1) for g in self._group_of], dtype=np.int64)
         self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
         self._probe: Callable[[int], dict] | None = None
+        self._probe_batch: Callable[[], Callable[[int], dict]] | None = None
         self._init_state(P)
         self.records: list[ImpactRecord] = []
         self._pending: list[list] = []  # [pair, record, spin axis, steps waited]
@@ -593,11 +594,19 @@ class ContactManager:
         correction to remove."""
         return K.required(self.active, self.J)
 
-    def set_body_probe(self, probe: Callable[[int], dict] | None) -> None:
-        """Install the adapter's body-level probe (see the class docstring)."""
+    def set_body_probe(self, probe: Callable[[int], dict] | None,
+                       batch: Callable[[], Callable[[int], dict]] | None = None) -> None:
+        """Install the adapter's body-level probe (see the class docstring).
+        batch: optional; returns a probe valid for one batch of calls made
+        between engine steps (records completed when they are read), so the
+        adapter brings the engine's derived quantities up to date once per
+        batch instead of once per record."""
         if probe is not None and not callable(probe):
             raise ValueError(f"probe = {probe!r} must be callable or None")
+        if batch is not None and not callable(batch):
+            raise ValueError(f"batch = {batch!r} must be callable or None")
         self._probe = probe
+        self._probe_batch = batch
 
     def state(self, pair_index: int) -> dict | None:
         """Current state of the pair's contact, or None when not in contact."""
@@ -1263,6 +1272,7 @@ class ContactManager:
         PENDING_MAX_STEPS steps (a new contact of the same pair keeps a
         correction going) is completed without the body-level output."""
         keep = []
+        probe = self._probe if at_step_start or self._probe_batch is None else None
         for entry in self._pending:
             if at_step_start:
                 entry[3] += 1
@@ -1270,7 +1280,9 @@ class ContactManager:
             clean = waited >= 1 and not np.any(self.J[p])
             if clean:
                 if self._probe is not None:
-                    bo = dict(self._probe(p) or {})
+                    if probe is None:  # the first record of a batch between steps
+                        probe = self._probe_batch()
+                    bo = dict(probe(p) or {})
                     rec.inputs["body_out"] = {k: _plain(v) for k, v in bo.items()}
                     if "omega1" in bo and axis is not None:
                         rec.spin_out = float(np.asarray(bo["omega1"], dtype=float) @ axis)
