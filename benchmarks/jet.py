@@ -2,7 +2,10 @@
 
 Uses ``experiments.scenarios.jet.memory_profile`` (one continuous jet, RSS
 at cumulative impact checkpoints) with the configuration
-``experiments/configs/jet.toml``. If the jet scenario or its configuration
+``experiments/configs/jet.toml``. The record gives impacts per CPU-second
+over the whole run (what the target is checked against) and after the
+first checkpoint (``impacts_per_cpu_s_after_first``: without loading, or
+in a fresh checkout compiling, the engines' numba kernels). If the jet scenario or its configuration
 is missing, or the run fails, the benchmark records a skip with the reason
 instead of failing the whole run.
 """
