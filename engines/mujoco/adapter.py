@@ -421,7 +421,7 @@ class MujocoAdapter(EngineAdapter):
             self._group_of = np.full(P, -1, np.int64)  # position in the free group of each pair (-1: slow)
             self._group_of[self._fast.index] = np.arange(self._fast.index.size)
             self._no_points = np.zeros((0, 3))  # p1, p2 when there is no free group
-        self.manager.set_body_probe(self._probe)
+        self.manager.set_body_probe(self._probe, batch=self._probe_batch)
         #: number of engine steps run through :meth:`step`
         self.steps = 0
         #: the manager's step-averaged forces of the last step (None: no candidate)
@@ -804,11 +804,22 @@ class MujocoAdapter(EngineAdapter):
         inside the hook, and after the step that ended the contact): body 1's
         angular velocity in world axes (spin_in/spin_out about n x t) and the
         relative centre-of-mass velocity [m/s]."""
-        p = self._pairs[i]
         if not self._armed:
             self._refresh()
+        return self._probe_now(i)
+
+    def _probe_now(self, i: int) -> dict:
+        """_probe from the derived quantities as they are (no refresh)."""
+        p = self._pairs[i]
         return {"omega1": self._angular_velocity(p.body1),
                 "v_com_rel": self._com_velocity(p.body1) - self._com_velocity(p.body2)}
+
+    def _probe_batch(self):
+        """The manager's batch probe: one refresh for all the records it
+        completes between two steps (nothing changes the state in between)."""
+        if not self._armed:
+            self._refresh()
+        return self._probe_now
 
 
 # -- the one global hook ------------------------------------------------------------
