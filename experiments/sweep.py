@@ -123,14 +123,18 @@ def _run_dask(fn, todo, out, address, workers, bar):
 def collect(out: Path, keys: set[str] | None = None) -> list[dict[str, Any]]:
     """The records of the finished cells (only those in ``keys`` if given: a
     folder reused with another configuration keeps its old cells), each with
-    its cell's parameters under ``cell.*`` and the cell key, sorted by key."""
+    its cell's parameters under ``cell.*`` and the cell key, sorted by key.
+    A cell's nested tables (dict values, e.g. the jet's whole configuration)
+    are not copied onto its records: they stay once in ``cells/<key>.json``
+    (and the configuration in ``manifest.json``)."""
     rows = []
     for p in sorted(cells_dir(out).glob("*.json")):
         if keys is not None and p.stem not in keys:
             continue
         blob = json.loads(p.read_text())
+        params = {f"cell.{k}": v for k, v in blob["cell"].items() if not isinstance(v, dict)}
         for i, rec in enumerate(blob["records"]):
-            row = {f"cell.{k}": v for k, v in blob["cell"].items()}
+            row = dict(params)
             row["cell_key"] = p.stem
             row["record_index"] = i
             row.update(rec)
