@@ -144,8 +144,9 @@ def indicator(code, lc, oc, p, x, xd):
 
 
 @jit
-def rhs(code, lc, oc, p, n, T, W, Wc, a, paper, y, dy, buf):
-    """dy/dt of one row (NY,) as _Batch.rhs; returns (F_n, |F_t|) at y."""
+def rhs(code, lc, oc, p, n, T, W, Wc, a, paper, y, dy, buf, want_ft):
+    """dy/dt of one row (NY,) as _Batch.rhs; returns (F_n, |F_t|) at y
+    (|F_t| only when want_ft, else 0: the RK4 stages after the first need neither)."""
     x = max(y[X], 0.0)
     xd = -(y[V] * n[0] + y[V + 1] * n[1] + y[V + 2] * n[2])
     forces(code, lc, oc, p, x, xd, buf)
@@ -193,24 +194,28 @@ def rhs(code, lc, oc, p, n, T, W, Wc, a, paper, y, dy, buf):
     dy[WVI] = (Fn - Fc) * xd
     dy[Q] = buf[4] * d_a * d_a + buf[5] * d_b * d_b
     dy[WT] = -(Ft0 * vt0 + Ft1 * vt1 + Ft2 * vt2)
-    return Fn, math.hypot(Fa, Fb)
+    return Fn, (math.hypot(Fa, Fb) if want_ft else 0.0)
 
 
 @jit
-def rk4(code, lc, oc, p, n, T, W, Wc, a, paper, y, h, out, work, buf):
+def rk4(code, lc, oc, p, n, T, W, Wc, a, paper, y, h, out, work, buf, k1_ready):
     """One classical RK4 step of length h from y into out; returns (F_n, |F_t|) at y.
-    work: (5, NY) scratch."""
+    work: (5, NY) scratch; work[0] holds the slope at y: with k1_ready it is
+    the one of the previous call from the same y (the partial steps of root
+    finding all start at the substep's start), and (0, 0) is returned."""
     k1, k2, k3, k4, yt = work[0], work[1], work[2], work[3], work[4]
-    Fn, Ft = rhs(code, lc, oc, p, n, T, W, Wc, a, paper, y, k1, buf)
+    Fn = Ft = 0.0
+    if not k1_ready:
+        Fn, Ft = rhs(code, lc, oc, p, n, T, W, Wc, a, paper, y, k1, buf, True)
     for j in range(NY):
         yt[j] = y[j] + 0.5 * h * k1[j]
-    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, yt, k2, buf)
+    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, yt, k2, buf, False)
     for j in range(NY):
         yt[j] = y[j] + 0.5 * h * k2[j]
-    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, yt, k3, buf)
+    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, yt, k3, buf, False)
     for j in range(NY):
         yt[j] = y[j] + h * k3[j]
-    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, yt, k4, buf)
+    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, yt, k4, buf, False)
     for j in range(NY):
         out[j] = y[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
     return Fn, Ft
@@ -239,7 +244,8 @@ def _gfun(kind, code, lc, oc, p, n, yy, xs, Bs, fz):
 def _root(kind, code, lc, oc, p, n, T, W, Wc, a, paper, y0, h, lo, hi, g_lo, g_hi, xs, Bs, fz, tmp, work, buf,
           root_iter, root_tol):
     """Illinois regula falsi for th in [lo, hi] with g(lo) > 0 >= g(hi), g of the
-    state rk4(y0, th h); as engines._contacts._find_root for one row."""
+    state rk4(y0, th h); as engines._contacts._find_root for one row. y0 is
+    the substep's start, whose slope rk4 left in work[0]."""
     side = 0
     if hi - lo <= root_tol or g_hi == 0:
         return hi
@@ -250,7 +256,7 @@ def _root(kind, code, lc, oc, p, n, T, W, Wc, a, paper, y0, h, lo, hi, g_lo, g_h
             return hi
         if th <= lo or th >= hi:
             th = 0.5 * (lo + hi)
-        rk4(code, lc, oc, p, n, T, W, Wc, a, paper, y0, th * h, tmp, work, buf)
+        rk4(code, lc, oc, p, n, T, W, Wc, a, paper, y0, th * h, tmp, work, buf, True)
         gt = _gfun(kind, code, lc, oc, p, n, tmp, xs, Bs, fz)
         if gt > 0:
             if side == 1:
@@ -563,7 +569,7 @@ def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt,
     nsub = max(1, int(math.ceil(rem / h_p - 1e-9)))
     hs = rem / nsub
     for i in range(nsub):
-        Fn0, Ft0 = rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, hs, Y1, work, buf)
+        Fn0, Ft0 = rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, hs, Y1, work, buf, False)
         ints[2] += 1
         # peak force and friction ratio at the substep start
         if Fn0 > fl[F_FMAX, p]:
@@ -579,7 +585,7 @@ def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt,
         if not turned[p] and xd0 > 0 and xd1 <= 0:
             th = _root(0, code, lc, oc, p, n, T, W, Wc, a, paper, Y, hs, 0.0, 1.0, xd0, xd1, 1.0, 1.0, fz, tmp,
                        work, buf, riter, rtol)
-            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, th * hs, Yt, work, buf)
+            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, th * hs, Yt, work, buf, True)
             turned[p] = True
             fl[F_TAU1, p] = t0 + t_loc + th * hs - fl[F_TONSET, p]
             fl[F_XTURN, p] = Yt[X]
@@ -593,7 +599,7 @@ def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt,
         if fz and xd1 < 0 and indicator(code, lc, oc, p, max(Y1[X], 0.0), xd1) < 0:
             end = True
         if end:
-            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, lo * hs, Yt, work, buf)  # Ylo
+            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, lo * hs, Yt, work, buf, True)  # Ylo
             xs = Yt[X] if Yt[X] > 0 else 1.0
             Bs = abs(indicator(code, lc, oc, p, max(Yt[X], 0.0), _xdot(Yt, n)))
             if not Bs > 0:
@@ -604,7 +610,7 @@ def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt,
                 g_lo = 1e-300
             th = _root(1, code, lc, oc, p, n, T, W, Wc, a, paper, Y, hs, lo, 1.0, g_lo, g_hi, xs, Bs, fz, tmp,
                        work, buf, riter, rtol)
-            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, th * hs, Yt, work, buf)  # Ye
+            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, th * hs, Yt, work, buf, True)  # Ye
             by_force = False
             if fz:
                 xde = _xdot(Yt, n)
