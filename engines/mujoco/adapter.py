@@ -774,11 +774,16 @@ class MujocoAdapter(EngineAdapter):
         return res[:3].copy()
 
     def _com_velocity(self, body: int) -> np.ndarray:
+        """Velocity of the body's centre of mass [m/s] (3,): from cvel, the
+        body's spatial velocity (omega; v at its root's subtree centre of
+        mass), v + omega x (xipos - subtree_com): what J(xipos) qvel gives,
+        without forming the (3, nv) Jacobian (nv is large in a jet)."""
         if int(self.model.body_weldid[body]) == 0:
             return np.zeros(3)
-        J = np.zeros((3, self.model.nv))
-        mujoco.mj_jac(self.model, self.data, J, None, self.data.xipos[body], body)
-        return J @ self.data.qvel
+        d = self.data
+        w, v = d.cvel[body, :3], d.cvel[body, 3:]
+        r = d.xipos[body] - d.subtree_com[self.model.body_rootid[body]]
+        return v + np.array([w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2], w[0] * r[1] - w[1] * r[0]])
 
     def separating(self, i: int) -> bool:
         """True if body 1 of pair i moves away from body 2 along the contact
