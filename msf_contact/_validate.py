@@ -47,6 +47,10 @@ def check_finite(name: str, value, allow_inf: bool = False) -> np.ndarray:
 
 def check_positive(name: str, value, allow_inf: bool = False, unit: str = "") -> np.ndarray:
     """Refuse values that are not > 0 (and NaN, and inf unless allowed)."""
+    arr = _as_array(name, value)
+    # one pass for the common case (NaN fails both comparisons); the checks below name the fault
+    if (arr > 0).all() if allow_inf else ((arr > 0) & (arr < np.inf)).all():
+        return arr
     arr = check_finite(name, value, allow_inf=allow_inf)
     if np.any(arr <= 0):
         u = f" {unit}" if unit else ""
