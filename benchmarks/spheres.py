@@ -34,14 +34,16 @@ QUICK_SIZES = (1, 100)
 
 
 def _steps(n: int, engine: str) -> int:
-    """Steps per timed repeat: ~0.1-1 s of MSF work per repeat on a 2-core machine."""
+    """Steps per timed repeat: ~0.05-0.2 s of the slowest variant per repeat
+    on a 2-core machine (enough steps that the timer and one-off hiccups
+    do not set the figure)."""
     if n <= 1:
-        return 200
+        return 2000
     if n <= 100:
-        return 40
+        return 500
     if n <= 1000:
-        return 8
-    return 2
+        return 100
+    return 10
 
 
 # ------------------------------------------------------------------ MuJoCo --
@@ -167,7 +169,7 @@ def run(quick: bool = False) -> list[dict]:
     sizes = QUICK_SIZES if quick else SIZES
     for engine in ("mujoco", "pybullet"):
         for n in sizes:
-            repeats = 3 if quick or n >= 10000 else 5
+            repeats = 3 if quick else 7
             log(f"per_step: {engine}, N = {n}, {repeats} repeats of {_steps(n, engine)} steps")
             try:
                 r = measure(engine, n, repeats)
