@@ -718,14 +718,22 @@ def check(pair, P, x, n, point, v, vc, W, Wc, a, active, Jst, seen, n_unit, poin
         if seen[q]:
             return 2, r
         seen[q] = True
-        ok = math.isfinite(x[r])
+        # NaN and inf propagate into the sum: one test per row, element by element only if it fails
+        # (a finite sum that overflowed is not an error)
+        tot = x[r]
         for i in range(3):
-            ok = ok and math.isfinite(n[r, i]) and math.isfinite(point[r, i]) and math.isfinite(v[r, i])
-            ok = ok and math.isfinite(vc[r, i]) and math.isfinite(a[r, i])
+            tot += n[r, i] + point[r, i] + v[r, i] + vc[r, i] + a[r, i]
             for j in range(3):
-                ok = ok and math.isfinite(W[r, i, j]) and math.isfinite(Wc[r, i, j])
-        if not ok:
-            return 3, r
+                tot += W[r, i, j] + Wc[r, i, j]
+        if not math.isfinite(tot):
+            ok = math.isfinite(x[r])
+            for i in range(3):
+                ok = ok and math.isfinite(n[r, i]) and math.isfinite(point[r, i]) and math.isfinite(v[r, i])
+                ok = ok and math.isfinite(vc[r, i]) and math.isfinite(a[r, i])
+                for j in range(3):
+                    ok = ok and math.isfinite(W[r, i, j]) and math.isfinite(Wc[r, i, j])
+            if not ok:
+                return 3, r
         nn = math.sqrt(n[r, 0] ** 2 + n[r, 1] ** 2 + n[r, 2] ** 2)
         if abs(nn - 1.0) > 1e-6:
             return 4, r
