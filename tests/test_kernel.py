@@ -264,3 +264,34 @@ def test_rows_of_several_laws_in_one_kernel_call():
         for key in ("cor_n", "tau", "x_max", "F_max"):
             assert close(getattr(a, key), getattr(b, key), SAME_RTOL, 0.0), (k, key)
         assert np.allclose(multi.v[k], one.v[0], rtol=SAME_RTOL, atol=1e-15)
+
+
+def _kin(**over):
+    base = dict(pair=np.array([0]), x=np.array([-1e-3]), normal=np.array([[0, 0, 1.0]]), point=np.zeros((1, 3)),
+                v_rel=np.array([[0.0, 0.0, -1.0]]), v_com_rel=np.array([[0.0, 0.0, -1.0]]), W=np.eye(3)[None],
+                W_com=np.eye(3)[None], a_ext=np.zeros((1, 3)), t=0.0)
+    base.update(over)
+    from engines.base import ContactKinematics
+    return ContactKinematics(**base)
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_bad_kinematics_are_refused_by_name(compiled):
+    law = LAWS_PTFE["hertz"]
+    specs = [PairSpec("a", "plate", law), PairSpec("b", "plate", law)]
+    for field, value in (("x", np.array([np.nan])), ("normal", np.array([[0.0, np.inf, 1.0]])),
+                         ("v_rel", np.array([[np.nan, 0.0, 0.0]])), ("W", np.full((1, 3, 3), np.inf)),
+                         ("a_ext", np.array([[0.0, 0.0, -np.inf]]))):
+        mgr = ContactManager(specs, 1e-3, "fake", compiled=compiled)
+        with pytest.raises(ValueError, match=f"kinematics.{field} is not finite"):
+            mgr.step(_kin(**{field: value}))
+    mgr = ContactManager(specs, 1e-3, "fake", compiled=compiled)
+    with pytest.raises(ValueError, match="unit vectors"):
+        mgr.step(_kin(normal=np.array([[0.0, 0.0, 1.1]])))
+    with pytest.raises(ValueError, match="twice"):
+        mgr.step(_kin(pair=np.array([1, 1]), x=np.full(2, -1e-3), normal=np.tile([0, 0, 1.0], (2, 1)),
+                      point=np.zeros((2, 3)), v_rel=np.zeros((2, 3)), v_com_rel=np.zeros((2, 3)),
+                      W=np.tile(np.eye(3), (2, 1, 1)), W_com=np.tile(np.eye(3), (2, 1, 1)), a_ext=np.zeros((2, 3))))
+    # huge but finite values are not an error (their sum overflows: the row is then checked element-wise)
+    mgr = ContactManager(specs, 1e-3, "fake", compiled=compiled)
+    mgr.step(_kin(point=np.array([[1e308, 1e308, 1e308]])))
