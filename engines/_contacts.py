@@ -65,7 +65,8 @@ step is unconditionally stable (steel on steel at 2 ms, omega dt ~ 30),
 gains no energy, and rests at the exact balance F_n(x_s, 0) = m a_n. Its
 force is constant over the step, so it needs no timing correction. A
 contact that is hit (rate above the criterion at the step start or in the
-solution) or whose solve fails goes back to sub-cycling in the same step. Onset speeds below :func:`onset_speed_floor` are raised to it for
+solution) or whose solve fails goes back to sub-cycling in the same step.
+Onset speeds below :func:`onset_speed_floor` are raised to it for
 the onset constants only (omega_x, Hunt-Crossley chi, ...): a contact that
 begins at a vanishing closing speed would otherwise get a vanishing omega_x
 and an unbounded damping E''/omega_x.

@@ -397,30 +397,33 @@ def settled_row(cst, r, p, code, lc, oc, n, T, W, Wc, a, paper, t0, dt, y, turne
         return False
     Ww = Wc if paper else W
     wo = VC if paper else V
-    # B = [n; t1; t2]; M = [n^T W; T Ww] B^T
-    for j in range(3):
-        m33[0, 0, j] = n[r, j]
-        m33[0, 1, j] = T[r, 0, j]
-        m33[0, 2, j] = T[r, 1, j]
-    m33[1, :] = 0.0
-    for j in range(3):
-        for i in range(3):
-            m33[1, 0, j] += n[r, i] * W[r, i, j]
-            m33[1, 1, j] += T[r, 0, i] * Ww[r, i, j]
-            m33[1, 2, j] += T[r, 1, i] * Ww[r, i, j]
-    m33[2, :] = 0.0
-    for i in range(3):
-        for j in range(3):
-            for q in range(3):
-                m33[2, i, j] += m33[1, i, q] * m33[0, j, q]
-    v3[0, 0] = (y[r, V] + dt * a[r, 0]) * n[r, 0] + (y[r, V + 1] + dt * a[r, 1]) * n[r, 1] + (y[r, V + 2] + dt * a[r, 2]) * n[r, 2]
-    v3[1, 0] = vn
-    for q in range(2):
-        v3[0, q + 1] = ((y[r, wo] + dt * a[r, 0]) * T[r, q, 0] + (y[r, wo + 1] + dt * a[r, 1]) * T[r, q, 1]
-                         + (y[r, wo + 2] + dt * a[r, 2]) * T[r, q, 2])
-        v3[1, q + 1] = y[r, wo] * T[r, q, 0] + y[r, wo + 1] * T[r, q, 1] + y[r, wo + 2] * T[r, q, 2]
-    s2a = T[r, 0, 0] * y[r, S] + T[r, 0, 1] * y[r, S + 1] + T[r, 0, 2] * y[r, S + 2]
-    s2b = T[r, 1, 0] * y[r, S] + T[r, 1, 1] * y[r, S + 1] + T[r, 1, 2] * y[r, S + 2]
+    # M = [n^T W; T Ww] B^T with B = [n; t1; t2], on scalars (kept in registers)
+    n0, n1, n2 = n[r, 0], n[r, 1], n[r, 2]
+    a0, a1, a2 = T[r, 0, 0], T[r, 0, 1], T[r, 0, 2]  # t1
+    b0, b1, b2 = T[r, 1, 0], T[r, 1, 1], T[r, 1, 2]  # t2
+    s00 = n0 * W[r, 0, 0] + n1 * W[r, 1, 0] + n2 * W[r, 2, 0]
+    s01 = n0 * W[r, 0, 1] + n1 * W[r, 1, 1] + n2 * W[r, 2, 1]
+    s02 = n0 * W[r, 0, 2] + n1 * W[r, 1, 2] + n2 * W[r, 2, 2]
+    s10 = a0 * Ww[r, 0, 0] + a1 * Ww[r, 1, 0] + a2 * Ww[r, 2, 0]
+    s11 = a0 * Ww[r, 0, 1] + a1 * Ww[r, 1, 1] + a2 * Ww[r, 2, 1]
+    s12 = a0 * Ww[r, 0, 2] + a1 * Ww[r, 1, 2] + a2 * Ww[r, 2, 2]
+    s20 = b0 * Ww[r, 0, 0] + b1 * Ww[r, 1, 0] + b2 * Ww[r, 2, 0]
+    s21 = b0 * Ww[r, 0, 1] + b1 * Ww[r, 1, 1] + b2 * Ww[r, 2, 1]
+    s22 = b0 * Ww[r, 0, 2] + b1 * Ww[r, 1, 2] + b2 * Ww[r, 2, 2]
+    M00, M01, M02 = s00 * n0 + s01 * n1 + s02 * n2, s00 * a0 + s01 * a1 + s02 * a2, s00 * b0 + s01 * b1 + s02 * b2
+    M10, M11, M12 = s10 * n0 + s11 * n1 + s12 * n2, s10 * a0 + s11 * a1 + s12 * a2, s10 * b0 + s11 * b1 + s12 * b2
+    M20, M21, M22 = s20 * n0 + s21 * n1 + s22 * n2, s20 * a0 + s21 * a1 + s22 * a2, s20 * b0 + s21 * b1 + s22 * b2
+    # z = (n.v, t1.w, t2.w) now and free of contact force at the step end
+    e0, e1, e2 = y[r, V] + dt * a[r, 0], y[r, V + 1] + dt * a[r, 1], y[r, V + 2] + dt * a[r, 2]
+    zf0 = e0 * n0 + e1 * n1 + e2 * n2
+    e0, e1, e2 = y[r, wo] + dt * a[r, 0], y[r, wo + 1] + dt * a[r, 1], y[r, wo + 2] + dt * a[r, 2]
+    zf1 = e0 * a0 + e1 * a1 + e2 * a2
+    zf2 = e0 * b0 + e1 * b1 + e2 * b2
+    z0 = vn
+    z1 = y[r, wo] * a0 + y[r, wo + 1] * a1 + y[r, wo + 2] * a2
+    z2 = y[r, wo] * b0 + y[r, wo + 1] * b1 + y[r, wo + 2] * b2
+    s2a = a0 * y[r, S] + a1 * y[r, S + 1] + a2 * y[r, S + 2]
+    s2b = b0 * y[r, S] + b1 * y[r, S + 1] + b2 * y[r, S + 2]
     delta = cst[C_FD] * x0 / dt
     tol = cst[C_VTOL] * vx
     mu = lc[LC_MU]
@@ -429,15 +432,15 @@ def settled_row(cst, r, p, code, lc, oc, n, T, W, Wc, a, paper, t0, dt, y, turne
     kt0 = kt1 = bt0 = bt1 = 0.0
     nmax = int(cst[C_NEWTON])
     for it in range(nmax + 1):
-        xd_e = -v3[1, 0]
+        xd_e = -z0
         x_e = x0 + dt * xd_e
         forces(code, lc, oc, p, x_e, xd_e, buf)
         Fn, Fc = buf[0], buf[1]
         kt0, kt1, bt0, bt1 = buf[2], buf[3], buf[4], buf[5]
-        sea = s2a + dt * v3[1, 1]
-        seb = s2b + dt * v3[1, 2]
-        Fa = -(bt0 * v3[1, 1] + kt0 * sea)
-        Fb = -(bt1 * v3[1, 2] + kt1 * seb)
+        sea = s2a + dt * z1
+        seb = s2b + dt * z2
+        Fa = -(bt0 * z1 + kt0 * sea)
+        Fb = -(bt1 * z2 + kt1 * seb)
         if not math.isnan(mu):
             cap = mu * max(Fn, 0.0)
             mag = math.hypot(Fa, Fb)
@@ -445,13 +448,11 @@ def settled_row(cst, r, p, code, lc, oc, n, T, W, Wc, a, paper, t0, dt, y, turne
                 sc = cap / mag if mag > 0 else 1.0
                 Fa *= sc
                 Fb *= sc
-        v3[2, 0], v3[2, 1], v3[2, 2] = Fn, Fa, Fb
-        rmax = 0.0
-        for i in range(3):
-            v3[3, i] = v3[1, i] - v3[0, i] - dt * (m33[2, i, 0] * v3[2, 0] + m33[2, i, 1] * v3[2, 1] + m33[2, i, 2] * v3[2, 2])
-            rmax = max(rmax, abs(v3[3, i]))
+        R0 = z0 - zf0 - dt * (M00 * Fn + M01 * Fa + M02 * Fb)
+        R1 = z1 - zf1 - dt * (M10 * Fn + M11 * Fa + M12 * Fb)
+        R2 = z2 - zf2 - dt * (M20 * Fn + M21 * Fa + M22 * Fb)
         ints[1] += 1
-        conv = rmax <= tol
+        conv = max(abs(R0), abs(R1), abs(R2)) <= tol
         if conv or it == nmax:
             break
         # forward difference dF_n/dx dt + dF_n/dx' (only when another iteration follows)
@@ -459,37 +460,39 @@ def settled_row(cst, r, p, code, lc, oc, n, T, W, Wc, a, paper, t0, dt, y, turne
         D0 = max((buf[0] - Fn) / delta, 0.0)
         D1 = bt0 + kt0 * dt
         D2 = bt1 + kt1 * dt
-        for i in range(3):
-            m33[3, i, 0] = dt * m33[2, i, 0] * D0
-            m33[3, i, 1] = dt * m33[2, i, 1] * D1
-            m33[3, i, 2] = dt * m33[2, i, 2] * D2
-            m33[3, i, i] += 1.0
+        # Newton: (I + dt M D) dz = R, in the scratch of _solve3
+        m33[3, 0, 0], m33[3, 0, 1], m33[3, 0, 2] = 1.0 + dt * M00 * D0, dt * M01 * D1, dt * M02 * D2
+        m33[3, 1, 0], m33[3, 1, 1], m33[3, 1, 2] = dt * M10 * D0, 1.0 + dt * M11 * D1, dt * M12 * D2
+        m33[3, 2, 0], m33[3, 2, 1], m33[3, 2, 2] = dt * M20 * D0, dt * M21 * D1, 1.0 + dt * M22 * D2
+        v3[3, 0], v3[3, 1], v3[3, 2] = R0, R1, R2
         if not _solve3(m33, 3, v3, 3, 4, M34):
             return False
-        for i in range(3):
-            v3[1, i] -= v3[4, i]
+        z0 -= v3[4, 0]
+        z1 -= v3[4, 1]
+        z2 -= v3[4, 2]
     if not (conv and x_e > 0 and Fn > 0 and abs(xd_e) <= cst[C_SPEED] * vx):
         return False
     # the step's result: the law's force at the end state, held over the step
-    for i in range(3):
-        v3[5, i] = Fn * n[r, i] + Fa * T[r, 0, i] + Fb * T[r, 1, i]
+    f0 = Fn * n0 + Fa * a0 + Fb * b0
+    f1 = Fn * n1 + Fa * a1 + Fb * b1
+    f2 = Fn * n2 + Fa * a2 + Fb * b2
     dx = x_e - x0  # Fc: the elastic part F_n(x_e, 0), from the last evaluation
+    u0 = y[r, V] + dt * (W[r, 0, 0] * f0 + W[r, 0, 1] * f1 + W[r, 0, 2] * f2 + a[r, 0])
+    u1 = y[r, V + 1] + dt * (W[r, 1, 0] * f0 + W[r, 1, 1] * f1 + W[r, 1, 2] * f2 + a[r, 1])
+    u2 = y[r, V + 2] + dt * (W[r, 2, 0] * f0 + W[r, 2, 1] * f1 + W[r, 2, 2] * f2 + a[r, 2])
     for i in range(3):
-        v3[6, i] = y[r, V + i] + dt * (W[r, i, 0] * v3[5, 0] + W[r, i, 1] * v3[5, 1] + W[r, i, 2] * v3[5, 2] + a[r, i])
-        y[r, VC + i] = y[r, VC + i] + dt * (Wc[r, i, 0] * v3[5, 0] + Wc[r, i, 1] * v3[5, 1] + Wc[r, i, 2] * v3[5, 2] + a[r, i])
-    v1n = v3[6, 0] * n[r, 0] + v3[6, 1] * n[r, 1] + v3[6, 2] * n[r, 2]
-    wt = 0.0
-    for i in range(3):
-        wt += (v3[5, i] - Fn * n[r, i]) * (v3[6, i] - v1n * n[r, i])
+        y[r, VC + i] += dt * (Wc[r, i, 0] * f0 + Wc[r, i, 1] * f1 + Wc[r, i, 2] * f2 + a[r, i])
+    un = u0 * n0 + u1 * n1 + u2 * n2
+    wt = (f0 - Fn * n0) * (u0 - un * n0) + (f1 - Fn * n1) * (u1 - un * n1) + (f2 - Fn * n2) * (u2 - un * n2)
     y[r, X] = x_e
-    for i in range(3):
-        y[r, V + i] = v3[6, i]
-        y[r, S + i] = sea * T[r, 0, i] + seb * T[r, 1, i]
-        y[r, P + i] = v3[5, i] * dt
-        y[r, PI + i] = 0.5 * dt * dt * v3[5, i]
+    y[r, V], y[r, V + 1], y[r, V + 2] = u0, u1, u2
+    y[r, S], y[r, S + 1], y[r, S + 2] = sea * a0 + seb * b0, sea * a1 + seb * b1, sea * a2 + seb * b2
+    y[r, P], y[r, P + 1], y[r, P + 2] = f0 * dt, f1 * dt, f2 * dt
+    h2 = 0.5 * dt * dt
+    y[r, PI], y[r, PI + 1], y[r, PI + 2] = h2 * f0, h2 * f1, h2 * f2
     y[r, WEL] += Fc * dx
     y[r, WVI] += (Fn - Fc) * dx
-    y[r, Q] += (bt0 * v3[1, 1] * v3[1, 1] + bt1 * v3[1, 2] * v3[1, 2]) * dt
+    y[r, Q] += (bt0 * z1 * z1 + bt1 * z2 * z2) * dt
     y[r, WT] -= wt * dt
     # record bookkeeping, as one substep at the end state
     if not turned[p] and xd_e <= 0:
@@ -653,8 +656,8 @@ def advance(cst, pairs, n, T, W, Wc, a, paper, kg, codes, LC, oc, t0, dt, h, y, 
             else:
                 t_loc[r] = dt
             continue
-        ended, by, tl = integrate_row(cst, codes[kg[r]], LC[kg[r]], oc, n[r], T[r], W[r], Wc[r], a[r], paper[r], p, y[r],
-                                      t_loc[r], t0, dt, h[p], turned, fl, ints, buf, work, rows4)
+        ended, by, tl = integrate_row(cst, codes[kg[r]], LC[kg[r]], oc, n[r], T[r], W[r], Wc[r], a[r], paper[r], p,
+                                      y[r], t_loc[r], t0, dt, h[p], turned, fl, ints, buf, work, rows4)
         t_loc[r] = tl
         if ended:
             status[r] = ST_ENDED
