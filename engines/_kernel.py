@@ -129,6 +129,18 @@ def forces(code, lc, oc, p, x, xd, out):
     out[0] = max(F, 0.0) if fz else F
 
 
+@jit_inline
+def coulomb(mu, Fn, Fa, Fb):
+    """The tangential force (Fa, Fb) [N] capped at mu max(F_n, 0) (mu NaN: no cap)."""
+    if not math.isnan(mu):
+        cap = mu * max(Fn, 0.0)
+        mag = math.hypot(Fa, Fb)
+        if mag > cap:
+            sc = cap / mag if mag > 0 else 1.0
+            return Fa * sc, Fb * sc
+    return Fa, Fb
+
+
 @jit
 def indicator(code, lc, oc, p, x, xd):
     """The law's separation indicator B(x, x') (force-zero: B < 0 ends the contact)."""
@@ -167,14 +179,7 @@ def rhs(code, lc, oc, p, n, T, W, Wc, a, paper, y, dy, buf, want_ft):
     d_b = T[1, 0] * sd0 + T[1, 1] * sd1 + T[1, 2] * sd2_
     Fa = -(buf[4] * d_a + buf[2] * s_a)
     Fb = -(buf[5] * d_b + buf[3] * s_b)
-    mu = lc[LC_MU]
-    if not math.isnan(mu):
-        cap = mu * max(Fn, 0.0)
-        mag = math.hypot(Fa, Fb)
-        if mag > cap:
-            sc = cap / mag if mag > 0 else 1.0
-            Fa *= sc
-            Fb *= sc
+    Fa, Fb = coulomb(lc[LC_MU], Fn, Fa, Fb)
     f0 = Fn * n[0] + Fa * T[0, 0] + Fb * T[1, 0]
     f1 = Fn * n[1] + Fa * T[0, 1] + Fb * T[1, 1]
     f2 = Fn * n[2] + Fa * T[0, 2] + Fb * T[1, 2]
@@ -441,13 +446,7 @@ def settled_row(cst, r, p, code, lc, oc, n, T, W, Wc, a, paper, t0, dt, y, turne
         seb = s2b + dt * z2
         Fa = -(bt0 * z1 + kt0 * sea)
         Fb = -(bt1 * z2 + kt1 * seb)
-        if not math.isnan(mu):
-            cap = mu * max(Fn, 0.0)
-            mag = math.hypot(Fa, Fb)
-            if mag > cap:
-                sc = cap / mag if mag > 0 else 1.0
-                Fa *= sc
-                Fb *= sc
+        Fa, Fb = coulomb(mu, Fn, Fa, Fb)
         R0 = z0 - zf0 - dt * (M00 * Fn + M01 * Fa + M02 * Fb)
         R1 = z1 - zf1 - dt * (M10 * Fn + M11 * Fa + M12 * Fb)
         R2 = z2 - zf2 - dt * (M20 * Fn + M21 * Fa + M22 * Fb)

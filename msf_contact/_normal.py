@@ -192,6 +192,18 @@ _E53 = np.stack((_E5, _E3))
 _EVENT_XTOL = 4 * np.finfo(float).eps
 
 
+def _dense_weights(x):
+    """DOP853 dense-output weights at the step fraction x (scalar or (m,)):
+    (x, x u, x^2 u, x^2 u^2, x^3 u^2, x^3 u^3, x^4 u^3) with u = 1 - x, shape x.shape + (7,)."""
+    u = 1.0 - x
+    w1 = x * u
+    w2 = w1 * x
+    w3 = w2 * u
+    w4 = w3 * x
+    w5 = w4 * u
+    return np.stack((x, w1, w2, w3, w4, w5, w5 * x), axis=-1)
+
+
 class Trajectory:
     """Result of :func:`dop853`, shaped like solve_ivp's: ``t`` (k,) [time unit
     of the problem], ``y`` (n, k) at the accepted steps (the last point is a
@@ -238,15 +250,7 @@ class Trajectory:
     def _step_value(self, i, t):
         """y(t) (n,) on step i for a scalar t."""
         t_old, t_new, y_old, _, _ = self._steps[i]
-        x = (t - t_old) / (t_new - t_old)
-        u = 1.0 - x
-        w1 = x * u
-        w2 = w1 * x
-        w3 = w2 * u
-        w4 = w3 * x
-        w5 = w4 * u
-        w = np.array((x, w1, w2, w3, w4, w5, w5 * x))
-        return y_old + w @ self._coefficients(i)
+        return y_old + _dense_weights((t - t_old) / (t_new - t_old)) @ self._coefficients(i)
 
     def sol(self, t):
         """Dense output: y (n,) for a scalar t, (n, m) for t of shape (m,)."""
@@ -259,14 +263,7 @@ class Trajectory:
         F = np.stack([self._coefficients(i) for i in used.tolist()])  # (k, 7, n)
         pick = np.searchsorted(used, seg)
         t_old, t_new = self._t_bounds[:-1][seg], self._t_bounds[1:][seg]
-        x = (t - t_old) / (t_new - t_old)
-        u = 1.0 - x
-        w1 = x * u
-        w2 = w1 * x
-        w3 = w2 * u
-        w4 = w3 * x
-        w5 = w4 * u
-        W = np.stack((x, w1, w2, w3, w4, w5, w5 * x), axis=-1)  # (m, 7)
+        W = _dense_weights((t - t_old) / (t_new - t_old))  # (m, 7)
         y_old = np.stack([self._steps[i][2] for i in used.tolist()])[pick]
         return (y_old + np.einsum("mk,mkn->mn", W, F[pick])).T
 

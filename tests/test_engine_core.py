@@ -111,8 +111,10 @@ class FakeEngine:
                                  v_com_rel=vc_rel[c], W=W[c], W_com=Wc[c], a_ext=a[c], t=self.t)
 
     def step(self):
-        kin = self.kinematics()
-        out = self.mgr.step(kin)
+        self.integrate(self.mgr.step(self.kinematics()))
+
+    def integrate(self, out):
+        """Apply the manager's forces (ContactForces) over one step and advance."""
         acc = np.repeat(self.g[None], len(self.m), 0)
         alpha = np.zeros_like(self.w)
         for q, F in zip(out.pair, out.force):

@@ -55,26 +55,9 @@ def run_both(make, steps):
             kin = eng.kinematics()
             res = eng.mgr.step(kin)
             forces.append((res.pair.copy(), res.force.copy()))
-            _advance(eng, res)
+            eng.integrate(res)
         out.append((eng, forces))
     return out
-
-
-def _advance(eng, out):
-    """FakeEngine.step's integration of the forces the manager returned."""
-    acc = np.repeat(eng.g[None], len(eng.m), 0)
-    alpha = np.zeros_like(eng.w)
-    for q, F in zip(out.pair, out.force):
-        i, j = eng.idx[q]
-        acc[i] += F / eng.m[i]
-        alpha[i] += np.cross(eng._pt1[q] - eng.p[i], F) / eng.I[i]
-        if j >= 0:
-            acc[j] -= F / eng.m[j]
-            alpha[j] -= np.cross(eng._pt2[q] - eng.p[j], F) / eng.I[j]
-    eng.v += eng.dt * acc
-    eng.w += eng.dt * alpha
-    eng.p += eng.dt * eng.v
-    eng.t += eng.dt
 
 
 def close(a, b, rtol, scale):
