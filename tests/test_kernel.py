@@ -278,3 +278,28 @@ def test_bad_kinematics_are_refused_by_name(compiled):
     # huge but finite values are not an error (their sum overflows: the row is then checked element-wise)
     mgr = ContactManager(specs, 1e-3, "fake", compiled=compiled)
     mgr.step(_kin(point=np.array([[1e308, 1e308, 1e308]])))
+
+
+def test_body_probe_batch_is_used_once_per_batch_between_steps():
+    # records completed when read (pop_records) take one batch probe for all of them
+    law = LAWS_PTFE["hertz"]
+    eng = balls_on_plate(law, R_PTFE, 1.0, 1e-3, [1e-4, 2e-4, 3e-4])
+    calls = {"batch": 0, "probe": 0}
+
+    def probe(q):
+        calls["probe"] += 1
+        return {"omega1": eng.w[eng.idx[q, 0]].copy()}
+
+    def batch():
+        calls["batch"] += 1
+        return probe
+
+    eng.mgr.set_body_probe(probe, batch=batch)
+    for _ in range(2):  # the three 0.4 ms contacts begin and end in step 1; step 2 removes their correction
+        eng.step()
+    assert eng.mgr.pending_count == 3  # waiting for their post-impact state
+    recs = eng.mgr.pop_records()
+    assert len(recs) == 3 and all(r.inputs["body_out"] is not None for r in recs)
+    assert calls["batch"] == 1
+    with pytest.raises(ValueError, match="batch"):
+        eng.mgr.set_body_probe(probe, batch=42)
