@@ -1739,7 +1739,7 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     ref = reference_by_angle(spec)
     if ref is not None:
         axes[0].plot(ref["angle"], ref["cor_n"], "k-", lw=1, label=f"reference solver, {ref['label']}: cor_n")
-        axes[0].plot(ref["angle"], ref["cor_t"], "k--", lw=1, label=f"reference solver: cor_t")
+        axes[0].plot(ref["angle"], ref["cor_t"], "k--", lw=1, label="reference solver: cor_t")
     axes[0].set_ylabel("coefficient of restitution [-]")
     axes[1].set_ylabel("normalised to the maximum [-]")
     for ax in axes:
