@@ -23,7 +23,7 @@ The force laws (``CODE_*``), each as in :mod:`msf_contact.laws`:
 MSF (37) with k_p of (15) in the law's mode and the tangential (36)-(37);
 Hertz (30), Kuwabara-Kono, Hunt-Crossley and the linear spring-dashpot with
 the Hertz-Mindlin tangential stiffness 8 G sqrt(R x); the Coulomb cap
-mu F_n when mu is set. Onset constants per row ``oc`` (k, NOC): see
+mu F_n when mu is set. Onset constants per pair ``oc`` (P, NOC): see
 :data:`ONSET_KEYS`. Law constants ``lc`` (NLC,): see ``LC_*``; rows of
 several laws go through one call, row r with the law kg[r] of codes (G,)
 and LC (G, NLC).
