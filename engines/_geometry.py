@@ -90,6 +90,16 @@ class Detection:
                          self.radii2.copy(), self.radii1.copy())
 
 
+def cross_rows(a, b) -> np.ndarray:
+    """Row-wise a x b for (..., 3) arrays, written out (np.cross costs more
+    than the arithmetic at these sizes)."""
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
+    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
+    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+    return out
+
+
 def check_pair_supported(shape1: str, shape2: str) -> str:
     """The canonical kind ("sphere-plane", "sphere-sphere", "sphere-box") of a
     pair of shapes, or ValueError naming both shapes when it is not smooth."""

@@ -120,24 +120,9 @@ def run_until_separated(adapter: MujocoAdapter, max_steps: int, pair: int = 0) -
                        "(a capture, or a contact far longer than expected)")
 
 
-def run_builtin_impact(
-    body1: Body,
-    body2: Body,
-    speed: float,
-    angle_deg: float = 90.0,
-    spin: float = 0.0,
-    *,
-    builtin: dict,
-    dt: float = 1e-4,
-    gap: float = 0.0,
-    gravity: float | None = None,
-    integrator: str = "euler",
-    plate: str = "plane",
-) -> ImpactRecord:
-    """The same isolated impact with MuJoCo's own soft contact; see
-    :func:`engines.mujoco.builtin.builtin_impact`."""
-    return builtin_impact(body1, body2, speed, angle_deg, spin, builtin=builtin, dt=dt, gap=gap,
-                          gravity=gravity, integrator=integrator, plate=plate)
+#: The same isolated impact with MuJoCo's own soft contact
+#: (:func:`engines.mujoco.builtin.builtin_impact`).
+run_builtin_impact = builtin_impact
 
 
 register_engine("mujoco", run_impact)

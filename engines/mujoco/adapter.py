@@ -82,7 +82,7 @@ import mujoco
 import numpy as np
 
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
-from engines._geometry import COINCIDENT_RTOL, Detection, sphere_box_face, sphere_plane, sphere_sphere
+from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box_face, sphere_plane, sphere_sphere
 from engines.base import (
     STEPS_PER_CONTACT_MIN,
     ContactForces,
@@ -177,15 +177,6 @@ def _vectorisable(model: mujoco.MjModel, p: _Pair) -> bool:
     return p.fixed2 or _simple_free_body(model, p.body2)
 
 
-def _cross(a, b):
-    """Row-wise a x b (k, 3), written out (np.cross costs more than the arithmetic here)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
-
-
 @dataclasses.dataclass
 class _FreeGroup:
     """The pairs whose bodies are free rigid bodies (or fixed), read and
@@ -270,7 +261,7 @@ class _FreeGroup:
         cvel, com = d.cvel, d.subtree_com
         w1, w2 = cvel[self.b1, :3], cvel[self.b2, :3]  # a welded body's cvel is 0
         c1c, c2c = com[m.body_rootid[self.b1]], com[m.body_rootid[self.b2]]
-        v_rel = (cvel[self.b1, 3:] + _cross(w1, p1 - c1c)) - (cvel[self.b2, 3:] + _cross(w2, p2 - c2c))
+        v_rel = (cvel[self.b1, 3:] + cross_rows(w1, p1 - c1c)) - (cvel[self.b2, 3:] + cross_rows(w2, p2 - c2c))
         idx = self.index
         a_ext = np.where(have_last[idx][:, None], (v_rel - last_v[idx] - last_dv[idx]) / dt, self.a0)
         last_v[idx], last_dv[idx], have_last[idx] = v_rel, 0.0, True
@@ -285,7 +276,7 @@ class _FreeGroup:
         if np.any(f2):
             W[f2] += self._inverse_inertia(m, d, b2[f2], p2[c][f2] - xi2[f2], self.inv_m2[c][f2])
         W_com = (self.inv_m1[c] + self.inv_m2[c])[:, None, None] * np.eye(3)
-        v_com = (cvel[b1, 3:] + _cross(w1[c], xi1 - c1c[c])) - (cvel[b2, 3:] + _cross(w2[c], xi2 - c2c[c]))
+        v_com = (cvel[b1, 3:] + cross_rows(w1[c], xi1 - c1c[c])) - (cvel[b2, 3:] + cross_rows(w2[c], xi2 - c2c[c]))
         rows = dict(pair=idx[c], x=x[c], normal=nrm[c], point=point[c], v_rel=v_rel[c], v_com_rel=v_com, W=W,
                     W_com=W_com, a_ext=a_ext[c])
         pos = np.full(len(last_v), -1)
@@ -329,7 +320,7 @@ class _FreeGroup:
             if not b.size:
                 continue
             arm = d.xipos[b] + r - d.xanchor[j]
-            tq = np.einsum("kji,kj->ki", d.xmat[b].reshape(-1, 3, 3), _cross(arm, F))
+            tq = np.einsum("kji,kj->ki", d.xmat[b].reshape(-1, 3, 3), cross_rows(arm, F))
             np.add.at(q, a[:, None] + np.arange(3), F)
             np.add.at(q, a[:, None] + np.arange(3, 6), tq)
 
@@ -350,7 +341,7 @@ class _FreeGroup:
             b, j, a, pts = b[on], j[on], a[on], pts[on]
             lin = dq[a[:, None] + np.arange(3)]
             ang = np.einsum("kij,kj->ki", d.xmat[b].reshape(-1, 3, 3), dq[a[:, None] + np.arange(3, 6)])
-            out[on] += sign * (lin + _cross(ang, pts - d.xanchor[j]))
+            out[on] += sign * (lin + cross_rows(ang, pts - d.xanchor[j]))
         return out
 
 

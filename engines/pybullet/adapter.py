@@ -66,6 +66,7 @@ import numpy as np
 import pybullet as pb
 
 from engines import _geometry
+from engines._geometry import cross_rows
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance, effective_inverse_inertia_free
 from engines.base import STEPS_PER_CONTACT_MIN, ContactKinematics, EngineAdapter, PairSpec, check_law_curvature
 
@@ -111,15 +112,6 @@ def _mats(q) -> np.ndarray:
         np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)], -1),
         np.stack([2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)], -1),
         np.stack([2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)], -1)], -2)
-
-
-def _cross(a, b):
-    """Row-wise a x b (n, 3), written out (np.cross costs more than the arithmetic here)."""
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = a[..., 1] * b[..., 2] - a[..., 2] * b[..., 1]
-    out[..., 1] = a[..., 2] * b[..., 0] - a[..., 0] * b[..., 2]
-    out[..., 2] = a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
-    return out
 
 
 def held_forces(manager, pair, t_next: float) -> np.ndarray:
@@ -537,7 +529,7 @@ class PybulletAdapter(EngineAdapter):
             det = _geometry.sphere_sphere(c1[sp], self._f_r1[sp], c2[sp], self._f_size2[sp, 0])
             x[sp], nrm[sp], point[sp] = det.x, det.normal, det.point
         r1, r2 = point - bodies.com[j1], point - bodies.com[j2]
-        v_rel = (bodies.v[j1] + _cross(bodies.w[j1], r1)) - (bodies.v[j2] + _cross(bodies.w[j2], r2))
+        v_rel = (bodies.v[j1] + cross_rows(bodies.w[j1], r1)) - (bodies.v[j2] + cross_rows(bodies.w[j2], r2))
         free1, free2 = self._b_free[j1], self._b_free[j2]
         a0 = grav * (free1.astype(float) - free2.astype(float))[:, None]
         a_ext = np.where(self._have_last[f][:, None], (v_rel - self._last_v_rel[f] - self._last_dv[f]) / self._dt,
@@ -675,7 +667,7 @@ class PybulletAdapter(EngineAdapter):
             j, f, p = j[on], sign * F[on], point[on]
             np.add.at(count, j, 1)
             np.add.at(force, j, f)
-            np.add.at(torque, j, _cross(p - bodies.com[j], f))
+            np.add.at(torque, j, cross_rows(p - bodies.com[j], f))
             at[j] = p
         one, many = np.flatnonzero(count == 1), np.flatnonzero(count > 1)
         return one, force[one], at[one], many, force[many], torque[many]
@@ -707,8 +699,8 @@ class PybulletAdapter(EngineAdapter):
             lin, ang = np.zeros((B, 3)), np.zeros((B, 3))
             np.add.at(lin, s1, P)
             np.add.at(lin, s2, -P)
-            np.add.at(ang, s1, _cross(pt - bodies.com[s1], P))
-            np.add.at(ang, s2, -_cross(pt - bodies.com[s2], P))
+            np.add.at(ang, s1, cross_rows(pt - bodies.com[s1], P))
+            np.add.at(ang, s2, -cross_rows(pt - bodies.com[s2], P))
             moved = np.any(lin != 0.0, axis=1) | np.any(ang != 0.0, axis=1)
             free = moved & self._b_free
             dv_b, dw_b = np.zeros((B, 3)), np.zeros((B, 3))
@@ -719,8 +711,8 @@ class PybulletAdapter(EngineAdapter):
                 dw_b[j] = np.einsum("kij,kj->ki", R, self._b_inv_I[j] * np.einsum("kji,kj->ki", R, ang[j]))
                 q = np.flatnonzero(free[self._slot[:, 0]] | free[self._slot[:, 1]])
                 a1, a2 = self._slot[q, 0], self._slot[q, 1]
-                self._last_dv[q] = ((dv_b[a1] + _cross(dw_b[a1], self._pt[q] - bodies.com[a1]))
-                                    - (dv_b[a2] + _cross(dw_b[a2], self._pt[q] - bodies.com[a2])))
+                self._last_dv[q] = ((dv_b[a1] + cross_rows(dw_b[a1], self._pt[q] - bodies.com[a1]))
+                                    - (dv_b[a2] + cross_rows(dw_b[a2], self._pt[q] - bodies.com[a2])))
             links = moved & self._b_link
             if np.any(links):
                 self._cross_dv_links(bodies, ph, P, links)
