@@ -32,6 +32,22 @@ def write_json_atomic(path: str | os.PathLike, obj: Any) -> Path:
     return write_text_atomic(path, json.dumps(obj, indent=2, sort_keys=True, allow_nan=False) + "\n")
 
 
+def add_figure(fig, out: str | os.PathLike, name: str, figs: list[str], dpi: int = 110) -> None:
+    """A report figure: laid out, saved atomically as ``out/figures/name``,
+    closed, and its name appended to ``figs``."""
+    import matplotlib.pyplot as plt
+
+    fig.tight_layout()
+    save_figure_atomic(fig, Path(out) / "figures" / name, dpi=dpi)
+    plt.close(fig)
+    figs.append(name)
+
+
+def figure_links(figs: list[str]) -> str:
+    """Markdown image links to the report's figures (``figures/<name>``)."""
+    return "".join(f"![{name}](figures/{name})\n\n" for name in figs)
+
+
 def save_figure_atomic(fig, path: str | os.PathLike, **kw) -> Path:
     """Save a matplotlib figure atomically (PNG by default)."""
     path = Path(path)

@@ -5,8 +5,8 @@ import subprocess
 import sys
 
 import pytest
+from test_cli import run  # main(argv) in-process: (exit code, stdout, stderr)
 
-from experiments import cli
 from msf_contact.record import CONTRACT_KEYS
 
 #: Issue 3: COR within 0.5% of the reference at a robotics step (dt = 1 ms
@@ -14,15 +14,6 @@ from msf_contact.record import CONTRACT_KEYS
 ROBOTICS_COR_RTOL = 5e-3
 
 BASE = ["impact", "--ball", "natural-rubber", "--plate", "steel", "--radius", "0.02", "--speed", "1", "--json"]
-
-
-def run(capsys, *argv):
-    try:
-        code = cli.main(list(argv))
-    except SystemExit as exc:
-        code = exc.code
-    out, err = capsys.readouterr()
-    return code, out, err
 
 
 def test_engine_choices_are_registered(capsys):

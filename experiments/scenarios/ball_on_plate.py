@@ -197,7 +197,7 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .._io import save_figure_atomic
+    from .._io import add_figure, figure_links
 
     figs = []
     sw = cfg["sweep"]
@@ -233,11 +233,7 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
             fig.suptitle(f"angle {angle:g} deg, spin {spin:g} rad/s")
             handles = {h.get_label(): h for ax in axes.flat for h in ax.get_lines()}
             axes.flat[0].legend(handles.values(), handles.keys(), fontsize=8)
-            fig.tight_layout()
-            name = f"speed_sweep_a{angle:g}_s{spin:g}.png"
-            save_figure_atomic(fig, out / "figures" / name, dpi=110)
-            plt.close(fig)
-            figs.append(name)
+            add_figure(fig, out, f"speed_sweep_a{angle:g}_s{spin:g}.png", figs)
     # angle sweeps
     if len(sw["angle"]) > 1:
         for speed, spin in itertools.product(sw["speed"], sw["spin"]):
@@ -253,11 +249,7 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
                 ax.grid(alpha=0.3)
             axes[0].legend(fontsize=8)
             fig.suptitle(f"speed {speed:g} m/s, initial spin {spin:g} rad/s")
-            fig.tight_layout()
-            name = f"angle_sweep_v{speed:g}_s{spin:g}.png"
-            save_figure_atomic(fig, out / "figures" / name, dpi=110)
-            plt.close(fig)
-            figs.append(name)
+            add_figure(fig, out, f"angle_sweep_v{speed:g}_s{spin:g}.png", figs)
     # force-time curves of every record that has them
     curves = [r for r in rows if isinstance(r.get("inputs"), dict) and "curves" in r["inputs"]]
     if curves:
@@ -279,10 +271,7 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
         ax.set_title("Normal force: the reference solver's curve and, for the engines, the force applied per step")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-        fig.tight_layout()
-        save_figure_atomic(fig, out / "figures" / "force_time.png", dpi=110)
-        plt.close(fig)
-        figs.append("force_time.png")
+        add_figure(fig, out, "force_time.png", figs)
     # table
     lines.append("| engine | law | V [m/s] | angle [deg] | spin [rad/s] | COR | cor_t | tau [ms] | x_max [mm] | "
                  "F_max [N] | spin_out [rad/s] |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n")
@@ -297,8 +286,7 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
                      f"{r['cell.spin']:g} | {f(r.get('cor_n'))} | {f(r.get('cor_t'))} | {f(r.get('tau'), 1e3)} | "
                      f"{f(r.get('x_max'), 1e3)} | {f(r.get('F_max'), 1, '.2f')} | {f(r.get('spin_out'), 1, '.2f')} |\n")
     lines.append("\n")
-    for name in figs:
-        lines.append(f"![{name}](figures/{name})\n\n")
+    lines.append(figure_links(figs))
     return "".join(lines), figs
 
 

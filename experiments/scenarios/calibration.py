@@ -247,7 +247,7 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     import matplotlib.pyplot as plt
     from matplotlib.ticker import NullFormatter, ScalarFormatter
 
-    from .._io import save_figure_atomic
+    from .._io import add_figure, figure_links
 
     c, d = cfg["calibration"], cfg["departure"]
     V = c["speed"]
@@ -318,11 +318,7 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
                 ax.grid(alpha=0.3)
             axes[1].legend(fontsize=7)
             fig.suptitle(f"calibrated at {V:g} m/s (dashed), dt = {dt:g} s; band: COR over onset phases")
-            fig.tight_layout()
-            name = f"speed_departure_dt{dt:g}.png"
-            save_figure_atomic(fig, out / "figures" / name, dpi=110)
-            plt.close(fig)
-            figs.append(name)
+            add_figure(fig, out, f"speed_departure_dt{dt:g}.png", figs)
         angles = sorted(set(d["angles"]), reverse=True)
         if len(angles) > 1:
             lines.append(f"## Departure across angles, dt = {dt:g} s, V = {V:g} m/s\n\n"
@@ -355,13 +351,8 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
                 ax.grid(alpha=0.3)
             axes[0].legend(fontsize=7)
             fig.suptitle(f"V = {V:g} m/s, dt = {dt:g} s")
-            fig.tight_layout()
-            name = f"angle_departure_dt{dt:g}.png"
-            save_figure_atomic(fig, out / "figures" / name, dpi=110)
-            plt.close(fig)
-            figs.append(name)
-    for name in figs:
-        lines.append(f"![{name}](figures/{name})\n\n")
+            add_figure(fig, out, f"angle_departure_dt{dt:g}.png", figs)
+    lines.append(figure_links(figs))
     return "".join(lines), figs
 
 

@@ -419,7 +419,7 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from .._io import save_figure_atomic
+    from .._io import add_figure, figure_links
 
     s, p = cfg["strike"], cfg["paddle"]
     figs: list[str] = []
@@ -470,13 +470,8 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
             ax.grid(alpha=0.3)
         axes[0].legend(fontsize=7)
         fig.suptitle(f"{drive} paddle, dt = {dt:g} s, ball falling at {s['ball_speed']:g} m/s")
-        fig.tight_layout()
-        name = f"paddle_{drive}_dt{dt:g}.png"
-        save_figure_atomic(fig, out / "figures" / name, dpi=110)
-        plt.close(fig)
-        figs.append(name)
-    for name in figs:
-        lines.append(f"![{name}](figures/{name})\n\n")
+        add_figure(fig, out, f"paddle_{drive}_dt{dt:g}.png", figs)
+    lines.append(figure_links(figs))
     return "".join(lines), figs
 
 
