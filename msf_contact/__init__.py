@@ -11,12 +11,13 @@ from .geometry import KP_MODES, ContactGeometry, Curvature
 from .laws import LAWS, ForceLaw, HertzLaw, HuntCrossleyLaw, KuwabaraKonoLaw, MSFLaw, SpringDashpotLaw, get_law, make_law
 from .materials import ContactPair, Material, PronySeries, TabulatedMasterCurve, WLF, preset, preset_names
 from .record import CONTRACT_KEYS, ImpactRecord
+from .chain import ChainResult, simulate_chain
 from .solver import Body, reduced_mass, simulate_impact
 
 __all__ = [
-    "Body", "CONTRACT_KEYS", "ContactGeometry", "ContactPair", "Curvature", "ForceLaw", "HertzLaw",
+    "Body", "CONTRACT_KEYS", "ChainResult", "ContactGeometry", "ContactPair", "Curvature", "ForceLaw", "HertzLaw",
     "HuntCrossleyLaw", "ImpactRecord", "KP_MODES", "KuwabaraKonoLaw", "LAWS", "MSFLaw", "Material",
     "PronySeries", "SpringDashpotLaw", "TabulatedMasterCurve", "ValidityWarning", "WLF", "closed_forms",
-    "get_law", "make_law", "preset", "preset_names", "reduced_mass", "simulate_impact",
+    "get_law", "make_law", "preset", "preset_names", "reduced_mass", "simulate_chain", "simulate_impact",
 ]
 __version__ = "0.1.0"
