@@ -16,6 +16,16 @@ import numpy as np
 TAN_DELTA_MAX = 1.0 / 3.0
 
 
+#: Small-strain bound of the contact geometry on the approach, x_max/R (R the
+#: effective radius (13)): the contact radius is a = sqrt(R x) in (29), so at
+#: x/R = 0.1 a/R = 0.32. Hertz's half-space and the linear viscoelastic
+#: moduli assume a << R (Johnson, Contact Mechanics, 1985, section 4.2; the
+#: spec's validity list: "x/R small"); MSF's k_p (15) extends the geometry
+#: toward 2R but not the material's small strain. Beyond it a record says
+#: so in ``outside_validity`` (issue 10).
+SMALL_STRAIN_X_OVER_R = 0.1
+
+
 class ValidityWarning(UserWarning):
     """The inputs leave the range in which the paper's model is valid."""
 
@@ -88,6 +98,16 @@ def check_tan_delta(name: str, value, strict: bool = False) -> np.ndarray:
             raise ValueError(msg)
         warnings.warn(msg, ValidityWarning, stacklevel=3)
     return arr
+
+
+def small_strain_note(x_max: float, R: float) -> str | None:
+    """The ``outside_validity`` reason for a contact whose x_max [m] exceeds
+    SMALL_STRAIN_X_OVER_R of the effective radius R [m], else None."""
+    if not math.isfinite(R) or R <= 0 or x_max <= SMALL_STRAIN_X_OVER_R * R:
+        return None
+    return (f"x_max/R = {x_max / R:.3g} above the small-strain bound {SMALL_STRAIN_X_OVER_R:g} "
+            f"(a/R = {math.sqrt(x_max / R):.2f}): Hertz's half-space and linear viscoelasticity need a << R; "
+            "the result is the model's, not necessarily the material's (lower the speed or use a larger radius)")
 
 
 def check_choice(name: str, value: str, choices) -> str:

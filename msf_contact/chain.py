@@ -44,7 +44,7 @@ from typing import Sequence
 import numpy as np
 
 from ._normal import ATOL_SCALED, RTOL, dop853
-from ._validate import check_finite, check_positive
+from ._validate import check_finite, check_positive, small_strain_note
 from .geometry import area
 from .laws import ForceLaw
 from .record import ImpactRecord
@@ -370,6 +370,9 @@ def _record(law, k, ends_k, ep, y, t, ended_by, m_c, x_end, xd_end, W_el, W_visc
     outside = []
     if law.outside(np.array([ep["x_max"]]))[0]:
         outside.append(f"x_max = {ep['x_max']:.6g} m reached 2R: k_p = sqrt(2 - x/R) of (15) was clamped")
+    strain = small_strain_note(x_m, law.geom.R)
+    if strain:
+        outside.append(strain)
     return ImpactRecord(
         cor_n=v_out / vin, cor_t=None, cor_t_contact=None,
         cor_tau_ratio=tau1 / (tau - tau1) if tau > tau1 else 0.0,

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from ._normal import ATOL_SCALED, RTOL, dop853
-from ._validate import ValidityWarning, check_choice, check_finite, check_positive, check_range
+from ._validate import ValidityWarning, check_choice, check_finite, check_positive, check_range, small_strain_note
 from .geometry import area
 from .laws import ForceLaw, MSFLaw
 from .materials import Material
@@ -280,6 +280,9 @@ def simulate_impact(
     if law.outside(np.array([x_max]))[0]:
         raise ValueError(f"x_max = {x_max:.6g} m >= 2R = {2 * law.geom.R:.6g} m: k_p = sqrt(2 - x/R) of (15) "
                          "has no real value; the impact is outside the msf geometry (use a lower speed)")
+    strain = small_strain_note(x_max, law.geom.R)
+    if strain:
+        outside.append(strain)
     if ended_by == "capture":
         outside.append("the bodies never separated (over-damped): outside the model's validity (100)")
 

@@ -106,6 +106,12 @@ _GEOM_NAMES = {
     mujoco.mjtGeom.mjGEOM_ELLIPSOID: "ellipsoid", mujoco.mjtGeom.mjGEOM_CYLINDER: "cylinder",
     mujoco.mjtGeom.mjGEOM_BOX: "box", mujoco.mjtGeom.mjGEOM_MESH: "mesh", mujoco.mjtGeom.mjGEOM_SDF: "sdf",
 }
+#: MuJoCo's divergence threshold on |qacc| (mjMAXVAL in mujoco/mjmodel.h).
+MJ_MAXVAL = 1e10
+#: A managed force explains a bad acceleration when its own estimate reaches
+#: this share of MJ_MAXVAL (the estimate F R / I_min bounds the torque's
+#: effect; a factor 10 of margin for the lever arm and the other dofs).
+MJ_MAXVAL_SHARE = 0.1
 _SECOND = ("sphere", "plane", "box")
 _ZERO3 = np.zeros(3)  # what body 2 may be; body 1 is a sphere
 
@@ -477,12 +483,58 @@ class MujocoAdapter(EngineAdapter):
                     self._armed = False
                 self.steps += 1
                 if self.data.warning[bad].number != resets:
-                    # MuJoCo met a NaN/inf or a huge acceleration and reset the state
-                    # (unless autoreset is disabled): never continue silently
-                    raise RuntimeError(
-                        f"MuJoCo reported a bad acceleration at t = {self.data.time:.6g} s (step {self.steps}) "
-                        "and reset the simulation: the time step is too large for the model, or a body "
-                        "is too light for MuJoCo's inertia floor")
+                    self._bad_acceleration()
+
+    def _bad_acceleration(self) -> None:
+        """MuJoCo flagged a NaN, inf or |qacc| > mjMAXVAL in the step just taken
+        (``mjWARN_BADQACC``). With ``<flag autoreset="disable"/>`` MuJoCo keeps
+        the state: a finite state is a real acceleration (a light body's
+        impulse in a short step) and the run goes on; otherwise, or when
+        MuJoCo reset the simulation, raise naming the dof, the body, the
+        managed forces on it and what to change (never continue silently)."""
+        m, d = self.model, self.data
+        bad = int(mujoco.mjtWarning.mjWARN_BADQACC)
+        dof = int(d.warning[bad].lastinfo)
+        autoreset = not (m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+        finite = bool(np.all(np.isfinite(d.qpos)) and np.all(np.isfinite(d.qvel)))
+        if not autoreset and finite:
+            return
+        body = int(m.dof_bodyid[dof]) if 0 <= dof < m.nv else -1
+        jnt = int(m.dof_jntid[dof]) if body >= 0 else -1
+        angular = jnt >= 0 and (m.jnt_type[jnt] in (mujoco.mjtJoint.mjJNT_HINGE, mujoco.mjtJoint.mjJNT_BALL) or (
+            m.jnt_type[jnt] == mujoco.mjtJoint.mjJNT_FREE and dof - int(m.jnt_dofadr[jnt]) >= 3))
+        where = f"dof {dof} ({'angular' if angular else 'linear'}) of body {m.body(body).name!r}" if body >= 0 else \
+            f"dof {dof}"
+        # the managed forces of the step on that body and the acceleration they give
+        acc, pairs = 0.0, []
+        out = self.last_forces
+        if out is not None and body >= 0:
+            for k, i in enumerate(np.asarray(out.pair, dtype=int)):
+                p = self._pairs[int(i)]
+                if body not in (p.body1, p.body2):
+                    continue
+                F = float(np.linalg.norm(out.force[k]))
+                if angular:  # a force at the surface of the sphere: torque <= F R about any axis
+                    R = p.radius1 if body == p.body1 else float(m.geom_size[p.geom2, 0])
+                    a = F * R / float(np.min(m.body_inertia[body]))
+                else:
+                    a = F / float(m.body_mass[body])
+                acc = max(acc, a)
+                pairs.append(f"pair {int(i)} (|F| = {F:.3g} N)")
+        state = ("MuJoCo reset the simulation" if autoreset else "the state is no longer finite")
+        head = f"MuJoCo reported a bad acceleration at t = {d.time:.6g} s (step {self.steps}, {where}) and {state}: "
+        if acc > MJ_MAXVAL_SHARE * MJ_MAXVAL and autoreset:
+            raise RuntimeError(
+                head + f"the step-averaged force of {', '.join(pairs)} over dt = {self.timestep:g} s gives it "
+                f"~{acc:.3g} {'rad/s^2' if angular else 'm/s^2'}, above MuJoCo's divergence threshold mjMAXVAL = "
+                f"{MJ_MAXVAL:g}: a real acceleration of a light body in a short step, not a divergence. Set "
+                "<flag autoreset=\"disable\"/> in the model's <option> (the adapter then checks that the state "
+                "stays finite) or use a larger dt (the step-averaged force falls as 1/dt)")
+        raise RuntimeError(
+            head + (f"the managed contacts give that body at most ~{acc:.3g} ({', '.join(pairs)}), " if pairs else
+                    "no managed contact acts on that body, ") +
+            "so the model itself diverged: the time step is too large for the model's other forces, or a body is "
+            "too light for MuJoCo's inertia floor")
 
     def __enter__(self):
         self._ctx = installed(self)

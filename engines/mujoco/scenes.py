@@ -77,10 +77,15 @@ def initial_velocity(speed: float, angle_deg: float) -> tuple[float, float]:
     return vt, speed * math.sin(a)
 
 
-def _option(dt: float, integrator: str, gravity: float | None) -> str:
+def _option(dt: float, integrator: str, gravity: float | None, builtin: dict | None = None) -> str:
+    """The <option> element; with the adapter's forces (builtin None) MuJoCo's
+    autoreset is off: a light ball's real acceleration in a short step can
+    exceed mjMAXVAL, and the adapter checks the state itself
+    (``MujocoAdapter._bad_acceleration``)."""
     g = 0.0 if gravity is None else -float(gravity)
     name = {"euler": "Euler", "rk4": "RK4", "implicitfast": "implicitfast"}[integrator]
-    return f'<option timestep="{_f(dt)}" integrator="{name}" gravity="0 0 {_f(g)}"/>'
+    flag = '<flag autoreset="disable"/>' if builtin is None else ""
+    return f'<option timestep="{_f(dt)}" integrator="{name}" gravity="0 0 {_f(g)}">{flag}</option>'
 
 
 def _inertial(body: Body) -> str:
@@ -152,7 +157,7 @@ def ball_on_plate(
         plate_xml = f'<geom name="plate" type="box" pos="0 0 {_f(-R)}" size="{_vec(L, L, R)}" {attrs}/>'
     ball_xml, qvel = _free_sphere("ball", ball, (0.0, 0.0, R + gap), (vt, 0.0, -vn), spin, attrs)
     exclude = "" if builtin is not None else '<contact><exclude body1="world" body2="ball"/></contact>'
-    xml = (f'<mujoco model="ball_on_plate">{_option(dt, integrator, gravity)}'
+    xml = (f'<mujoco model="ball_on_plate">{_option(dt, integrator, gravity, builtin)}'
            f"<worldbody>{plate_xml}{ball_xml}</worldbody>{exclude}</mujoco>")
     model, data = _finish(xml)
     data.qvel[:] = qvel
@@ -188,7 +193,7 @@ def two_spheres(
     b1, q1 = _free_sphere("ball", ball, (x0, 0.0, ball.radius + gap), (vt, 0.0, -vn), spin, attrs)
     b2, q2 = _free_sphere("ball2", ball2, (0.0, 0.0, -ball2.radius), (0.0, 0.0, 0.0), 0.0, attrs)
     exclude = "" if builtin is not None else '<contact><exclude body1="ball" body2="ball2"/></contact>'
-    xml = (f'<mujoco model="two_spheres">{_option(dt, integrator, gravity)}'
+    xml = (f'<mujoco model="two_spheres">{_option(dt, integrator, gravity, builtin)}'
            f"<worldbody>{b1}{b2}</worldbody>{exclude}</mujoco>")
     model, data = _finish(xml)
     data.qvel[:] = q1 + q2
@@ -243,7 +248,7 @@ def paddle_and_ball(
     )
     ball_xml, qvel = _free_sphere("ball", ball, (hit_x, 0.0, R + gap), (0.0, 0.0, -vn), 0.0, attrs)
     exclude = "" if builtin is not None else '<contact><exclude body1="paddle" body2="ball"/></contact>'
-    xml = (f'<mujoco model="paddle_and_ball">{_option(dt, integrator, gravity)}'
+    xml = (f'<mujoco model="paddle_and_ball">{_option(dt, integrator, gravity, builtin)}'
            f"<worldbody>{paddle}{ball_xml}</worldbody><actuator>{act}</actuator>{exclude}</mujoco>")
     model, data = _finish(xml)
     bq = model.jnt_dofadr[model.joint("ball_free").id]

@@ -1,0 +1,63 @@
+"""Never silent (issue 10, item 4): leaving the model's validity is said in
+the record, whichever solver produced it."""
+
+import pytest
+
+from msf_contact import Body, ContactPair, Curvature, make_law, preset, simulate_impact
+from msf_contact._validate import SMALL_STRAIN_X_OVER_R
+
+GLASS, PU = preset("glass"), preset("polyurethane")
+R_BEAD = 2.5e-4  # [m] a jet bead
+
+
+def bead_law():
+    return make_law("msf", ContactPair(GLASS, PU), Curvature.sphere_on_plane(R_BEAD))
+
+
+@pytest.mark.parametrize("speed, deep", [(1.0, False), (50.0, True)])
+def test_reference_flags_large_strain(speed, deep):
+    """A glass bead on polyurethane: ~0.02 R deep at 1 m/s (inside the
+    bound), 0.41 R at 50 m/s (outside; the issue found a record at 0.74 R
+    with an empty outside_validity)."""
+    law = bead_law()
+    rec = simulate_impact(law, Body.sphere(GLASS, R_BEAD), Body.half_space(PU), speed, 30.0)
+    assert (rec.x_max / law.geom.R > SMALL_STRAIN_X_OVER_R) is deep
+    flagged = [s for s in rec.outside_validity if "small-strain" in s]
+    assert bool(flagged) is deep, rec.outside_validity
+
+
+def _bead_in_mujoco(autoreset: bool, dt=1e-5):
+    """The 0.25 mm bead at 50 m/s, 30 degrees, in MuJoCo: the scene of the
+    command line (autoreset off), or the same model with MuJoCo's autoreset."""
+    import mujoco
+
+    from engines.base import PairSpec
+    from engines.mujoco import MujocoAdapter, installed, scenes
+
+    model, data = scenes.ball_on_plate(Body.sphere(GLASS, R_BEAD), 50.0, 30.0, dt=dt)
+    if autoreset:
+        model.opt.disableflags &= ~int(mujoco.mjtDisableBit.mjDSBL_AUTORESET)
+    ad = MujocoAdapter(model, data, [PairSpec("ball", "plate", bead_law())])
+    with installed(ad):
+        ad.step(10)
+    return ad
+
+
+@pytest.mark.mujoco
+def test_mujoco_bad_acceleration_names_its_cause():
+    """The bead's spin-up in one 10 us step is ~4e10 rad/s^2, above MuJoCo's
+    divergence threshold mjMAXVAL = 1e10: with autoreset MuJoCo resets the
+    simulation, and the adapter says why and what to change."""
+    pytest.importorskip("mujoco")
+    with pytest.raises(RuntimeError, match=r"dof 4 \(angular\) of body 'ball'.*pair 0.*mjMAXVAL.*autoreset"):
+        _bead_in_mujoco(autoreset=True)
+
+
+@pytest.mark.mujoco
+def test_mujoco_bead_runs_without_autoreset():
+    """The command line's scene disables the autoreset; the acceleration is
+    real and the impact completes with a finite record."""
+    pytest.importorskip("mujoco")
+    ad = _bead_in_mujoco(autoreset=False)
+    (rec,) = ad.records
+    assert 0.6 < rec.cor_n < 0.8
