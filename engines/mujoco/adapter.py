@@ -1,7 +1,24 @@
 """The MuJoCo adapter: force laws between pairs of geoms through the
 ``mjcb_passive`` hook (the contract is in :mod:`engines.base`).
 
-What it does each engine step (:meth:`MujocoAdapter.step` runs ``mj_step``):
+The hook is the integration: while it is installed (:func:`installed`),
+every ``mj_step`` of the adapter's MjData gets the contact forces, whoever
+calls it (a user's loop, ``mj_step(..., nstep=n)``, the passive viewer's
+loop, gymnasium's ``MujocoEnv.do_simulation``, ``mj_step1``/``mj_step2``),
+under Euler, RK4, implicit and implicitfast; :meth:`MujocoAdapter.step` is a
+convenience that runs ``mj_step`` and checks MuJoCo's bad-acceleration
+reset. Each hook call is classified (:mod:`engines.mujoco._stepping`): the
+contact state advances once per step, at the step's first call; RK4's stage
+calls and repeated ``mj_forward`` at the same state reuse the step's force
+(so ``mj_forward`` and ``mj_rnePostConstraint`` between steps change
+nothing, and after ``mj_forward`` ``qfrc_passive``/``qacc`` include the
+contact). A state that is not the integrator's image of the last one (a
+jump: ``mj_resetData``, qpos or qvel written, time set) interrupts the
+contacts in progress, with no record and a RuntimeWarning
+(``adapter.jumps``, ``adapter.interrupted``), instead of integrating the
+jump as a contact; a_ext restarts from gravity.
+
+What it does each engine step:
 
 1. At the first call of the passive hook inside the step (positions,
    velocities, the inertia matrix and its factorisation are then current),
@@ -67,8 +84,6 @@ of chains) take the same path either way.
 The hook is process-global: :func:`installed` puts ONE dispatching hook in
 place (dispatch by the MjData object), chains the previously installed
 Python hook and restores it in ``finally``, also when ``mj_step`` raises.
-Passive-hook calls outside :meth:`MujocoAdapter.step` (e.g. a bare
-``mj_forward``) add no contact force.
 """
 
 from __future__ import annotations
@@ -77,6 +92,7 @@ import contextlib
 import ctypes
 import dataclasses
 import math
+import warnings
 
 import mujoco
 import numpy as np
@@ -91,6 +107,7 @@ from engines.base import (
     PairSpec,
     check_law_curvature,
 )
+from engines.mujoco._stepping import StepTracker
 
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times the
 #: distance the surfaces can close in one step (closing speed dt plus the
@@ -391,9 +408,15 @@ class MujocoAdapter(EngineAdapter):
         nv = model.nv
         self._jac = np.zeros((3, nv))
         self._jac2 = np.zeros((3, nv))
-        self._armed = False  # inside self.step's mj_step
-        self._fresh = False  # the step's force is still to be computed
+        self._in_hook = False  # inside the passive hook (derived quantities are current)
         self._installed = False
+        #: classifies every hook call: a new step, the same step again, an RK4 stage, a jump
+        self._tracker = StepTracker(model)
+        self._pending_mark = 0  # manager.pending_count before the last computed step
+        #: state jumps seen between steps (mj_resetData, qpos/qvel written, time set; _stepping)
+        self.jumps = 0
+        #: contacts a jump interrupted (no record)
+        self.interrupted = 0
         # (body1, body2, body2 fixed, force on body 1 [N], lever arms [m] (3,) from each
         # body's centre of mass to its contact point, world axes, at the step start)
         self._apply: list[tuple[int, int, bool, np.ndarray, np.ndarray, np.ndarray]] = []
@@ -467,8 +490,10 @@ class MujocoAdapter(EngineAdapter):
         return float(self.model.opt.timestep)
 
     def step(self, n: int = 1) -> None:
-        """Run ``mj_step`` n times with the pairs' laws acting (installs the
-        hook for the call if it is not installed already)."""
+        """Run ``mj_step`` n times (a convenience: with the hook installed any
+        ``mj_step`` gets the contact forces, see :func:`installed`); installs
+        the hook for the call if it is not installed already, and raises
+        RuntimeError if MuJoCo reset a blown-up state."""
         if int(n) != n or n < 0:
             raise ValueError(f"n = {n!r} steps must be a whole number >= 0")
         ctx = contextlib.nullcontext() if self._installed else installed(self)
@@ -476,11 +501,7 @@ class MujocoAdapter(EngineAdapter):
         with ctx:
             for _ in range(int(n)):
                 resets = self.data.warning[bad].number
-                self._armed, self._fresh = True, True
-                try:
-                    mujoco.mj_step(self.model, self.data)
-                finally:
-                    self._armed = False
+                mujoco.mj_step(self.model, self.data)
                 self.steps += 1
                 if self.data.warning[bad].number != resets:
                     self._bad_acceleration()
@@ -546,11 +567,21 @@ class MujocoAdapter(EngineAdapter):
 
     # -- the hook ----------------------------------------------------------------
     def _passive(self, model, data) -> None:
-        if not self._armed:
-            return
-        if self._fresh:
-            self._fresh = False
-            self._compute()
+        """The hook: classify the call (engines.mujoco._stepping), compute the
+        step's force once per step, apply it in every call of the step."""
+        kind = self._tracker.classify(data)
+        if kind not in ("same", "stage"):
+            if float(model.opt.timestep) != self.manager.dt:
+                raise RuntimeError(f"model.opt.timestep = {float(model.opt.timestep)!r} s changed after the adapter "
+                                   f"was made for dt = {self.manager.dt!r} s: make a new adapter")
+            if kind == "jump":
+                self._jump()
+            self._pending_mark = self.manager.pending_count
+            self._in_hook = True
+            try:
+                self._compute()
+            finally:
+                self._in_hook = False
         # the lever arm from each body's centre of mass is held fixed in world axes
         # over the step (the contact point stays under the ball; the manager's W
         # assumes it), so every RK4 stage gets the same force and moment
@@ -563,6 +594,21 @@ class MujocoAdapter(EngineAdapter):
             mujoco.mj_applyFT(model, data, F, _ZERO3, data.xipos[b1] + r1, b1, data.qfrc_passive)
             if not fixed2:
                 mujoco.mj_applyFT(model, data, -F, _ZERO3, data.xipos[b2] + r2, b2, data.qfrc_passive)
+
+    def _jump(self) -> None:
+        """The state jumped between steps (engines.mujoco._stepping): the
+        contacts in progress are interrupted, not integrated across the jump
+        (ContactManager.interrupt), and a_ext restarts from gravity."""
+        self.jumps += 1
+        why = f"MuJoCo's state jumped at t = {float(self.data.time):.6g} s: {self._tracker.why}"
+        n = self.manager.interrupt(why)
+        self._have_last[:] = False
+        self._last_dv[:] = 0.0
+        self._apply, self._apply_fast = [], None
+        if n:
+            self.interrupted += n
+            warnings.warn(f"{why}; {n} MSF contact(s) in progress were interrupted without a record "
+                          f"(adapter.interrupted = {self.interrupted})", RuntimeWarning, stacklevel=2)
 
     def _geometry(self, p: _Pair) -> Detection:
         """The contact of pair p from the current poses (engines._geometry);
@@ -852,7 +898,7 @@ class MujocoAdapter(EngineAdapter):
         inside the hook, and after the step that ended the contact): body 1's
         angular velocity in world axes (spin_in/spin_out about n x t) and the
         relative centre-of-mass velocity [m/s]."""
-        if not self._armed:
+        if not self._in_hook:
             self._refresh()
         return self._probe_now(i)
 
@@ -865,7 +911,7 @@ class MujocoAdapter(EngineAdapter):
     def _probe_batch(self):
         """The manager's batch probe: one refresh for all the records it
         completes between two steps (nothing changes the state in between)."""
-        if not self._armed:
+        if not self._in_hook:
             self._refresh()
         return self._probe_now
 
@@ -910,7 +956,6 @@ def installed(adapter: MujocoAdapter):
         yield adapter
     finally:
         adapter._installed = False
-        adapter._armed = False
         _REGISTRY.pop(key, None)
         if not _REGISTRY:
             prev = _PREVIOUS[0] if _PREVIOUS else None

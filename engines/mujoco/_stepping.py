@@ -1,0 +1,127 @@
+"""Which MuJoCo step a call of ``mjcb_passive`` belongs to.
+
+MuJoCo calls the passive hook from ``mj_fwdVelocity``, i.e. in every
+``mj_forward`` (MuJoCo 4.0, ``src/engine/engine_forward.c``):
+
+- ``mj_step`` = ``mj_forward`` at the step's start state, then the
+  integrator. Euler, implicit and implicitfast add no further call; RK4
+  (``mj_RungeKutta``) calls ``mj_forwardSkip`` for its three later stages,
+  with ``data.time`` set to t + h/2, t + h/2, t + h and the stage's qpos,
+  qvel; ``mj_step(model, data, nstep)`` is nstep of these;
+  ``mj_step1``/``mj_step2`` call it once (in ``mj_step1``);
+- a user's ``mj_forward`` (the viewer's sync, gymnasium's ``set_state``,
+  rendering) calls it at whatever state ``data`` holds;
+- ``mj_rnePostConstraint`` does not call it.
+
+After a step MuJoCo's ``mj_advance`` sets qvel += h qacc', qpos = qpos (+) h
+qvel_new (Euler, implicit, implicitfast: the new velocity; RK4: the
+tableau's weighted velocity) and time += h.
+
+:class:`StepTracker` classifies each call from ``data`` alone, so the
+contact state advances exactly once per step whoever calls the hook and how
+often:
+
+- ``"first"``: the first call seen;
+- ``"same"``: the start state of the current step again (a repeated
+  ``mj_forward``, or ``mj_step`` after ``mj_forward``): reuse the step's force;
+- ``"stage"``: an RK4 stage of the current step (time t + C_i h, in order);
+- ``"step"``: the start of the next step: time is exactly t + h and the
+  state is what the integrator makes of the last start state (checked to
+  ``JUMP_VTOL``, below);
+- ``"jump"``: anything else: ``mj_resetData``, a time set by the user, a
+  qpos or qvel written between steps (or a qpos/qvel edit followed by
+  ``mj_forward`` at the same time). The adapter then interrupts its
+  contacts (``engines.mujoco.adapter``) instead of integrating the jump as
+  a contact.
+
+Not covered: MuJoCo's sleeping islands (``mjENBL_SLEEP``) re-run
+``mj_forwardSkip`` inside ``mj_advance``; such a call is taken as a jump.
+"""
+
+from __future__ import annotations
+
+import mujoco
+import numpy as np
+
+#: A new step's state must be the integrator's image of the last start state
+#: to this velocity tolerance [m/s or rad/s per dof], relative to 1 + |qvel|:
+#: the round-off of mj_integratePos / mj_differentiatePos (quaternions) at
+#: h = 1e-6 s is below 1e-9; a velocity edit below 1e-7 (1 + |v|) is not
+#: told from the step (it acts as a 1e-7 m/s error on the contact, far
+#: below the laws' accuracy).
+JUMP_VTOL = 1e-7
+
+#: RK4's stage times as fractions of h (MuJoCo's RK4_A row sums).
+RK4_C = (0.5, 0.5, 1.0)
+#: RK4's weights (MuJoCo's RK4_B).
+RK4_B = (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)
+
+
+class StepTracker:
+    """See the module docstring. ``classify(data)`` once per hook call."""
+
+    def __init__(self, model: mujoco.MjModel):
+        self.model = model
+        self.t0: float | None = None  # time of the current step's start state
+        self.q0 = np.zeros(model.nq)
+        self.v = np.zeros((4, model.nv))  # qvel of the start state and of RK4's stages 2-4
+        self.stage = 0  # RK4 stage calls seen since the start state
+        self._dq = np.zeros(model.nv)
+        #: why the last "jump" was one (for warnings)
+        self.why = ""
+
+    def classify(self, d: mujoco.MjData) -> str:
+        m = self.model
+        t = float(d.time)
+        if self.t0 is None:
+            return self._start(d, "first")
+        h = float(m.opt.timestep)
+        rk4 = int(m.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4)
+        if rk4 and self.stage < 3 and t == self.t0 + RK4_C[self.stage] * h:
+            self.stage += 1
+            self.v[self.stage] = d.qvel
+            return "stage"
+        if t == self.t0 and np.array_equal(d.qpos, self.q0) and np.array_equal(d.qvel, self.v[0]):
+            self.stage = 0
+            return "same"
+        if t == self.t0 + h and (not rk4 or self.stage == 3):
+            why = self._not_integrated(d, h, rk4)
+            if not why:
+                return self._start(d, "step")
+        elif t == self.t0:
+            why = "qpos/qvel changed without a step"
+        elif rk4 and t == self.t0 + h:
+            why = "time advanced by one step without RK4's stages (a state set by the user)"
+        else:
+            why = f"time went from {self.t0!r} s to {t!r} s, not one step of {h!r} s (a reset, or time set)"
+        self.why = why
+        return self._start(d, "jump")
+
+    def _start(self, d, kind: str) -> str:
+        self.t0 = float(d.time)
+        self.q0[:] = d.qpos
+        self.v[0] = d.qvel
+        self.stage = 0
+        return kind
+
+    def _not_integrated(self, d, h: float, rk4: bool) -> str:
+        """'' if (qpos, qvel) is the integrator's step from the start state,
+        else what differs."""
+        m = self.model
+        mujoco.mj_differentiatePos(m, self._dq, h, self.q0, d.qpos)  # (qpos - q0) / h on the manifold
+        v0 = self.v[0]
+        if rk4:
+            # qpos advanced with the weighted stage velocities; qvel with the weighted stage
+            # accelerations, a_i from the stage velocities v_{i+1} = v_0 + C_i h a_i and a_4 =
+            # the last stage's qacc (still in data: this hook runs before mj_fwdAcceleration)
+            vbar = sum(b * self.v[i] for i, b in enumerate(RK4_B))
+            a = [(self.v[i + 1] - v0) / (RK4_C[i] * h) for i in range(3)] + [d.qacc]
+            v_new = v0 + h * sum(b * a[i] for i, b in enumerate(RK4_B))
+        else:
+            vbar = v_new = d.qvel  # semi-implicit: qpos advanced with the new velocity
+        tol = JUMP_VTOL * (1.0 + np.abs(d.qvel))
+        if np.any(np.abs(self._dq - vbar) > tol):
+            return "qpos is not the step's image of the last state (qpos or qvel written between steps)"
+        if rk4 and np.any(np.abs(d.qvel - v_new) > tol):
+            return "qvel is not the step's image of the last state (qvel written between steps)"
+        return ""

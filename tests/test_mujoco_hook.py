@@ -1,0 +1,208 @@
+"""MSF in every mj_step, whoever calls it (issue 11, item 1).
+
+The docs/engines.md model (a rubber ball dropped on a steel floor) stepped
+by a plain ``mujoco.mj_step`` loop, by ``mj_step(..., nstep=5)``, with
+``mj_forward``/``mj_rnePostConstraint`` between steps (the viewer's and
+gymnasium's loop shapes) and by gymnasium's own ``MujocoEnv.step``, under
+each integrator, gives the records of ``adapter.step()``; state jumps
+between steps are interrupted, not integrated as contacts.
+"""
+
+from __future__ import annotations
+
+import math
+import warnings
+
+import mujoco
+import numpy as np
+import pytest
+
+from engines.base import PairSpec
+from engines.mujoco import MujocoAdapter, installed
+from msf_contact import Body, ContactPair, Curvature, make_law, preset, simulate_impact
+
+pytestmark = pytest.mark.mujoco
+
+R, MASS, DT = 0.02, 0.0312, 1e-3
+XML = f"""
+<mujoco>
+  <option timestep="{DT}" gravity="0 0 -9.81" integrator="{{integrator}}"/>
+  <worldbody>
+    <geom name="floor" type="plane" size="1 1 0.1"/>
+    <body name="ball" pos="0 0 0.3">
+      <freejoint/>
+      <geom name="ball" type="sphere" size="{R}" mass="{MASS}"/>
+    </body>
+  </worldbody>
+  <contact><exclude body1="world" body2="ball"/></contact>
+</mujoco>
+"""
+INTEGRATORS = ["Euler", "RK4", "implicit", "implicitfast"]
+#: The issue's bound: the same records however mj_step is called (they are in fact bitwise equal).
+SAME_RTOL = 1e-9
+#: Two bounces: the ball hits at 0.24 s and again at 0.59 s.
+STEPS = 700
+#: MuJoCo at 1 ms with sub-cycling against the reference solver (tests/test_docs_examples.py).
+ENGINE_COR_RTOL = 5e-3
+FIELDS = ("cor_n", "tau", "tau1", "x_max", "F_max", "W_diss_n", "spin_in", "spin_out")
+
+
+def law():
+    return make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(R))
+
+
+def make(integrator="Euler"):
+    model = mujoco.MjModel.from_xml_string(XML.format(integrator=integrator))
+    data = mujoco.MjData(model)
+    return model, data, MujocoAdapter(model, data, [PairSpec("ball", "floor", law())])
+
+
+def same_records(got, want):
+    assert len(got) == len(want) >= 2
+    for g, w in zip(got, want):
+        for f in FIELDS:
+            a, b = getattr(g, f), getattr(w, f)
+            if b is None:
+                assert a is None, f
+            else:
+                assert a == pytest.approx(b, rel=SAME_RTOL, abs=1e-15), f
+        assert g.inputs["t_onset"] == w.inputs["t_onset"]
+
+
+def run(integrator, how):
+    model, data, adapter = make(integrator)
+    z = []
+    if how == "adapter.step":
+        adapter.step(STEPS)
+        return adapter, data
+    with installed(adapter):
+        if how == "mj_step":
+            for _ in range(STEPS):
+                mujoco.mj_step(model, data)
+                z.append(data.qpos[2])
+        elif how == "nstep=5":
+            for _ in range(STEPS // 5):
+                mujoco.mj_step(model, data, nstep=5)
+                z.append(data.qpos[2])
+        elif how == "viewer":  # the passive viewer's loop: step, then reads (and forwards) between steps
+            for _ in range(STEPS):
+                mujoco.mj_step(model, data)
+                mujoco.mj_forward(model, data)
+                mujoco.mj_forward(model, data)
+                mujoco.mj_rnePostConstraint(model, data)
+                z.append(float(data.xpos[1, 2]))
+    assert min(z) > 0.9 * R  # held by the floor (the ball sinks less than 2 mm)
+    return adapter, data
+
+
+@pytest.mark.parametrize("integrator", INTEGRATORS)
+def test_plain_mj_step_loops_give_adapter_step_records(integrator):
+    ref, ref_data = run(integrator, "adapter.step")
+    want = ref.records
+    b = preset("natural-rubber")
+    v_in = want[0].inputs["v_n_in"]
+    assert v_in == pytest.approx(math.sqrt(2 * 9.81 * (0.3 - R)), rel=1e-2)
+    sim = simulate_impact(law(), Body(b, R, MASS), Body.half_space(preset("steel")), v_in)
+    assert want[0].cor_n == pytest.approx(sim.cor_n, rel=ENGINE_COR_RTOL)
+    for how in ("mj_step", "nstep=5", "viewer"):
+        adapter, data = run(integrator, how)
+        same_records(adapter.records, want)
+        # mj_forward between steps changes nothing: the trajectory is the same
+        np.testing.assert_allclose(data.qpos, ref_data.qpos, rtol=0, atol=1e-12)
+        assert adapter.jumps == 0
+
+
+def test_reset_between_steps_is_a_jump_not_a_contact():
+    """mj_resetData during a contact: the contact is interrupted (warning, no
+    record), the run goes on, and the rerun from the initial state gives the
+    records of a clean run."""
+    model, data, clean = make()
+    clean.step(STEPS)
+    model, data, adapter = make()
+    with installed(adapter):
+        for _ in range(240):  # inside the first contact (onset at 0.2384 s, tau 2.3 ms)
+            mujoco.mj_step(model, data)
+        assert adapter.manager.active_count == 1
+        mujoco.mj_resetData(model, data)
+        with pytest.warns(RuntimeWarning, match="state jumped.*1 MSF contact"):
+            mujoco.mj_forward(model, data)
+        for _ in range(STEPS):
+            mujoco.mj_step(model, data)
+    assert adapter.jumps == 1 and adapter.interrupted == 1
+    same_records(adapter.records, clean.records)
+
+
+@pytest.mark.parametrize("integrator", ["Euler", "RK4"])
+def test_velocity_and_position_written_between_steps_are_jumps(integrator):
+    """A resting ball kicked up by writing qvel, then teleported by writing
+    qpos: each is a jump (the resting contact is interrupted, not fed the
+    velocity change as an acceleration), and the ball then flies freely."""
+    model, data, adapter = make(integrator)
+    data.qpos[2] = R  # resting on the floor
+    with installed(adapter), warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)
+        for _ in range(300):
+            mujoco.mj_step(model, data)
+        assert adapter.manager.active_count == 1 and adapter.jumps == 0
+        data.qvel[2] = 1.0
+        mujoco.mj_step(model, data)
+        assert adapter.jumps == 1 and adapter.interrupted == 1
+        # the kick is not taken as a contact force: free flight, v = 1 - g dt after one step
+        assert data.qvel[2] == pytest.approx(1.0 - 9.81 * DT, rel=1e-9)
+        for _ in range(20):
+            mujoco.mj_step(model, data)
+        data.qpos[2] += 0.05
+        mujoco.mj_step(model, data)
+        assert adapter.jumps == 2
+        mujoco.mj_step(model, data)
+        assert adapter.jumps == 2  # ordinary steps are not jumps
+
+
+def test_gymnasium_env_gets_contact_forces_from_its_own_step(tmp_path):
+    """A gymnasium MujocoEnv stepped by gymnasium's own code (do_simulation:
+    mj_step(model, data, nstep=frame_skip), then mj_rnePostConstraint; reset:
+    mj_resetData, set_state with mj_forward): the ball bounces with the
+    records of adapter.step(), and a reset mid-run is a jump, not a contact."""
+    from gymnasium import spaces  # gymnasium[mujoco] is in the test extra
+    from gymnasium.envs.mujoco import mujoco_env as gym_mujoco
+
+    path = tmp_path / "ball.xml"
+    path.write_text(XML.format(integrator="Euler"))
+
+    class Ball(gym_mujoco.MujocoEnv):
+        metadata = {"render_modes": ["human", "rgb_array", "depth_array", "rgbd_tuple"], "render_fps": 200}
+
+        def __init__(self):
+            super().__init__(str(path), frame_skip=5,
+                             observation_space=spaces.Box(-np.inf, np.inf, shape=(13,), dtype=np.float64))
+
+        def step(self, action):
+            self.do_simulation(action, self.frame_skip)
+            return self._get_obs(), 0.0, False, False, {}
+
+        def _get_obs(self):
+            return np.concatenate([self.data.qpos, self.data.qvel])
+
+        def reset_model(self):
+            self.set_state(self.init_qpos, self.init_qvel)
+            return self._get_obs()
+
+    env = Ball()  # compiled before the hook is installed (engines.mujoco.installed)
+    env.reset(seed=0)
+    model, data = env.unwrapped.model, env.unwrapped.data
+    adapter = MujocoAdapter(model, data, [PairSpec("ball", "floor", law())])
+    _, _, clean = make()
+    clean.step(STEPS)
+    with installed(adapter):
+        z = []
+        for _ in range(STEPS // 5):
+            obs, *_ = env.step(np.zeros(0))
+            z.append(obs[2])
+        assert min(z) > 0.9 * R  # without the hook the ball falls through the floor
+        same_records(adapter.records, clean.records)
+        env.reset(seed=0)
+        for _ in range(STEPS // 5):
+            env.step(np.zeros(0))
+    env.close()
+    assert adapter.jumps == 1
+    same_records(adapter.records[2:], clean.records)
