@@ -1257,29 +1257,37 @@ class ContactManager:
         else:  # completed once the engine has applied the contact's last impulse (see pending_count)
             self._pending.append([p, rec, axis if lt > 0 else None, 0])
 
-    def interrupt(self, why: str) -> int:
-        """The engine's state jumped (reset, positions or velocities set by
-        the user): forget every contact that was in progress at the start of
-        the last step, those still active and those that ended in it (their
-        records are dropped: half a contact is no impact), with their timing
-        corrections; complete the records of contacts that ended earlier
-        without the body-level output (``why`` says why). Returns the number
-        of contacts dropped."""
-        dropped = int(np.count_nonzero(self.active))
-        for p, rec, _axis, waited in self._pending:
-            if waited == 0:  # ended in the last step
+    def interrupt(self, pairs, why: str) -> int:
+        """The engine's state jumped for the bodies of ``pairs`` (pair
+        indices (k,); a reset, or positions or velocities set by the user):
+        forget every contact of those pairs that was in progress at the start
+        of the last step, those still active and those that ended in it
+        (their records are dropped: half a contact is no impact), with their
+        timing corrections; complete the records of their contacts that ended
+        earlier without the body-level output (``why`` says why). Returns the
+        number of contacts dropped."""
+        sel = np.zeros(len(self.pairs), bool)
+        sel[np.asarray(pairs, dtype=int)] = True
+        dropped = int(np.count_nonzero(self.active & sel))
+        keep = []
+        for entry in self._pending:
+            p, rec, _axis, waited = entry
+            if not sel[p]:
+                keep.append(entry)
+            elif waited == 0:  # ended in the last step
                 dropped += 1
-                continue
-            rec.inputs["body_out"] = None
-            rec.inputs["body_out_unavailable"] = why
-            self._publish(p, rec)
-        self._pending = []
-        self._hist.clear()
-        self.active[:] = False
-        self.settled[:] = False
-        self.J[:] = 0.0
-        self.dv_corr[:] = 0.0
-        self.dvc_corr[:] = 0.0
+            else:
+                rec.inputs["body_out"] = None
+                rec.inputs["body_out_unavailable"] = why
+                self._publish(p, rec)
+        self._pending = keep
+        for p in np.flatnonzero(sel):
+            self._hist.pop(int(p), None)
+        self.active[sel] = False
+        self.settled[sel] = False
+        self.J[sel] = 0.0
+        self.dv_corr[sel] = 0.0
+        self.dvc_corr[sel] = 0.0
         return dropped
 
     def _publish(self, p: int, rec: ImpactRecord) -> None:

@@ -30,9 +30,10 @@ often:
   ``JUMP_VTOL``, below);
 - ``"jump"``: anything else: ``mj_resetData``, a time set by the user, a
   qpos or qvel written between steps (or a qpos/qvel edit followed by
-  ``mj_forward`` at the same time). The adapter then interrupts its
-  contacts (``engines.mujoco.adapter``) instead of integrating the jump as
-  a contact.
+  ``mj_forward`` at the same time); ``jumped`` marks the dofs that jumped
+  (``None``: all of them, when time did). The adapter then interrupts the contacts of
+  the kinematic trees of those dofs (``engines.mujoco.adapter``) instead of
+  integrating the jump as a contact; the other pairs step on.
 
 Not covered: MuJoCo's sleeping islands (``mjENBL_SLEEP``) re-run
 ``mj_forwardSkip`` inside ``mj_advance``; such a call is taken as a jump.
@@ -44,11 +45,13 @@ import mujoco
 import numpy as np
 
 #: A new step's state must be the integrator's image of the last start state
-#: to this velocity tolerance [m/s or rad/s per dof], relative to 1 + |qvel|:
-#: the round-off of mj_integratePos / mj_differentiatePos (quaternions) at
-#: h = 1e-6 s is below 1e-9; a velocity edit below 1e-7 (1 + |v|) is not
-#: told from the step (it acts as a 1e-7 m/s error on the contact, far
-#: below the laws' accuracy).
+#: to this velocity tolerance [m/s or rad/s per dof], relative to 1 + |qvel|
+#: (qpos: JUMP_VTOL h (1 + max |qvel|)). The image is recomputed with
+#: MuJoCo's mj_integratePos from the start state: bitwise the step's for the
+#: semi-implicit integrators, to round-off for RK4 (its weighted velocity is
+#: summed in another order); a velocity edit below 1e-7 (1 + |v|) is not told
+#: from the step (it acts as a 1e-7 m/s error on a contact, far below the
+#: laws' accuracy).
 JUMP_VTOL = 1e-7
 
 #: RK4's stage times as fractions of h (MuJoCo's RK4_A row sums).
@@ -66,9 +69,18 @@ class StepTracker:
         self.q0 = np.zeros(model.nq)
         self.v = np.zeros((4, model.nv))  # qvel of the start state and of RK4's stages 2-4
         self.stage = 0  # RK4 stage calls seen since the start state
-        self._dq = np.zeros(model.nv)
+        self._q = np.zeros(model.nq)
         #: why the last "jump" was one (for warnings)
         self.why = ""
+        #: the kinematic trees (MuJoCo's body_treeid) that jumped at the last "jump"; None: all
+        #: of them (time jumped)
+        self.jumped: np.ndarray | None = None
+        # the tree of each qpos coordinate (nq,), of each dof: model.dof_treeid
+        self._qtree = np.full(model.nq, -1)
+        for j in range(model.njnt):
+            a = int(model.jnt_qposadr[j])
+            n = {int(mujoco.mjtJoint.mjJNT_FREE): 7, int(mujoco.mjtJoint.mjJNT_BALL): 4}.get(int(model.jnt_type[j]), 1)
+            self._qtree[a:a + n] = model.body_treeid[model.jnt_bodyid[j]]
 
     def classify(self, d: mujoco.MjData) -> str:
         m = self.model
@@ -84,6 +96,7 @@ class StepTracker:
         if t == self.t0 and np.array_equal(d.qpos, self.q0) and np.array_equal(d.qvel, self.v[0]):
             self.stage = 0
             return "same"
+        self.jumped = None
         if t == self.t0 + h and (not rk4 or self.stage == 3):
             why = self._not_integrated(d, h, rk4)
             if not why:
@@ -106,9 +119,8 @@ class StepTracker:
 
     def _not_integrated(self, d, h: float, rk4: bool) -> str:
         """'' if (qpos, qvel) is the integrator's step from the start state,
-        else what differs."""
+        else what differs (and the trees that differ in ``jumped``)."""
         m = self.model
-        mujoco.mj_differentiatePos(m, self._dq, h, self.q0, d.qpos)  # (qpos - q0) / h on the manifold
         v0 = self.v[0]
         if rk4:
             # qpos advanced with the weighted stage velocities; qvel with the weighted stage
@@ -119,9 +131,18 @@ class StepTracker:
             v_new = v0 + h * sum(b * a[i] for i, b in enumerate(RK4_B))
         else:
             vbar = v_new = d.qvel  # semi-implicit: qpos advanced with the new velocity
-        tol = JUMP_VTOL * (1.0 + np.abs(d.qvel))
-        if np.any(np.abs(self._dq - vbar) > tol):
-            return "qpos is not the step's image of the last state (qpos or qvel written between steps)"
-        if rk4 and np.any(np.abs(d.qvel - v_new) > tol):
-            return "qvel is not the step's image of the last state (qvel written between steps)"
+        # the step's qpos from the start state, by MuJoCo's own mj_integratePos (a rotation of
+        # more than pi per step, e.g. a spinning bead, is not recovered by differentiating)
+        self._q[:] = self.q0
+        mujoco.mj_integratePos(m, self._q, vbar, h)
+        vmax = float(np.max(np.abs(d.qvel))) if m.nv else 0.0
+        tol_q = JUMP_VTOL * h * (1.0 + vmax) + 1e-13 * (1.0 + np.abs(self.q0))
+        bad_q = np.abs(self._q - d.qpos) > tol_q
+        trees = set(self._qtree[bad_q].tolist())
+        if rk4:
+            trees |= set(m.dof_treeid[np.abs(d.qvel - v_new) > JUMP_VTOL * (1.0 + np.abs(d.qvel))].tolist())
+        if trees:
+            self.jumped = np.array(sorted(trees))
+            return (f"qpos/qvel of {len(trees)} kinematic tree(s) are not the step's image of the last state "
+                    "(qpos or qvel written between steps)")
         return ""

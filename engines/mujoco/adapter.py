@@ -412,7 +412,9 @@ class MujocoAdapter(EngineAdapter):
         self._installed = False
         #: classifies every hook call: a new step, the same step again, an RK4 stage, a jump
         self._tracker = StepTracker(model)
-        self._pending_mark = 0  # manager.pending_count before the last computed step
+        # the kinematic tree of each pair's two bodies (P, 2); -1: welded to the world
+        self._trees = np.array([[model.body_treeid[p.body1], model.body_treeid[p.body2]] for p in self._pairs],
+                               int).reshape(-1, 2)
         #: state jumps seen between steps (mj_resetData, qpos/qvel written, time set; _stepping)
         self.jumps = 0
         #: contacts a jump interrupted (no record)
@@ -576,7 +578,6 @@ class MujocoAdapter(EngineAdapter):
                                    f"was made for dt = {self.manager.dt!r} s: make a new adapter")
             if kind == "jump":
                 self._jump()
-            self._pending_mark = self.manager.pending_count
             self._in_hook = True
             try:
                 self._compute()
@@ -597,14 +598,18 @@ class MujocoAdapter(EngineAdapter):
 
     def _jump(self) -> None:
         """The state jumped between steps (engines.mujoco._stepping): the
-        contacts in progress are interrupted, not integrated across the jump
-        (ContactManager.interrupt), and a_ext restarts from gravity."""
+        contacts of the pairs with a body in a kinematic tree that jumped are
+        interrupted, not integrated across the jump (ContactManager.interrupt),
+        and their a_ext restarts from gravity; the other pairs step on."""
+        trees = self._tracker.jumped
+        hit = np.ones(len(self._pairs), bool) if trees is None else np.isin(self._trees, trees).any(axis=1)
+        if not np.any(hit):
+            return
         self.jumps += 1
         why = f"MuJoCo's state jumped at t = {float(self.data.time):.6g} s: {self._tracker.why}"
-        n = self.manager.interrupt(why)
-        self._have_last[:] = False
-        self._last_dv[:] = 0.0
-        self._apply, self._apply_fast = [], None
+        n = self.manager.interrupt(np.flatnonzero(hit), why)
+        self._have_last[hit] = False
+        self._last_dv[hit] = 0.0
         if n:
             self.interrupted += n
             warnings.warn(f"{why}; {n} MSF contact(s) in progress were interrupted without a record "
