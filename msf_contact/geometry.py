@@ -3,6 +3,11 @@
 Arrays: ``x`` is the approach of the undeformed surfaces [m], shape (n,) or
 scalar; all functions broadcast.
 
+Line contacts (a cylinder's or capsule's side on a plane, one relative radius
+infinite) carry a :class:`SideFootprint`: the contact axis b of (26) is then
+the length of the overlap along the body's axis instead of 2 k_pb sqrt(R_b x)
+(an extension of the paper, ``docs/theory.md`` section 2a).
+
 Correlation-coefficient modes (one setting for every law that has k_p):
 
 - ``"hertz"``: k_p = 1, Hertz's r^2 = R x, (30);
@@ -19,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validate import check_choice, check_positive
+from ._validate import check_choice, check_positive, check_range
 from .materials import ContactPair
 
 KP_MODES = ("msf", "msf-small", "hertz")
@@ -59,24 +64,92 @@ def kp_clamped(x, R, mode: str = "msf"):
 
 
 @dataclass(frozen=True)
+class SideFootprint:
+    """The overlap of a capsule's or a cylinder's side with a plane, along the
+    body's axis: the contact axis b of a line contact (extension of the paper,
+    ``docs/theory.md`` section 2a).
+
+    radius [m] of the side, length [m] of its straight part (a capsule's
+    segment, a cylinder's height), tilt [rad] between the axis and the plane
+    (0 = lying flat), caps: ``"sphere"`` (a capsule's hemispherical ends) or
+    ``"flat"`` (a cylinder; only tilt = 0, the rim is then a separate contact).
+
+    The contact is measured exactly, as (13) is: the axis point at s along
+    the segment (s = 0 the lowest end) is at the height h(s) = R - x + s sin(tilt)
+    above the plane and its sphere of radius R cuts the plane in a disc of
+    radius rho(s) = sqrt(R^2 - h(s)^2). :meth:`axes` returns the width
+    a = 2 rho(0) (= 2 k_p sqrt(R x) of (26) with the msf k_p of (15)) and the
+    length b of the union of the discs along the axis.
+    """
+
+    radius: float
+    length: float
+    tilt: float = 0.0
+    caps: str = "sphere"
+
+    def __post_init__(self):
+        check_positive("footprint radius", self.radius, unit="m")
+        check_positive("footprint length", self.length, unit="m")
+        check_range("footprint tilt [rad]", self.tilt, 0.0, math.pi / 2)
+        check_choice("footprint caps", self.caps, ("sphere", "flat"))
+        if self.caps == "flat" and self.tilt != 0.0:
+            raise ValueError(f"footprint tilt = {self.tilt!r} rad with flat caps: a tilted cylinder touches with "
+                             "its rim (a point contact: shapes.Cylinder.curvature at the rim), not its side")
+
+    def axes(self, x):
+        """Contact axes (a, b) [m] at the approach x [m] of the lowest point, (n,)."""
+        x = np.maximum(np.asarray(x, dtype=float), 0.0)
+        R, L, th = self.radius, self.length, self.tilt
+        h0 = R - x
+        rho0 = np.sqrt(np.maximum(x * (2.0 * R - x), 0.0))  # R^2 - h0^2 without cancellation
+        a = 2.0 * rho0
+        if self.caps == "flat":
+            return a, np.where(x > 0.0, L, 0.0)
+        if th == 0.0:
+            return a, 2.0 * rho0 + L
+        s_t, c_t = math.sin(th), math.cos(th)
+        # farthest reach along the axis, max over s of s cos(tilt) + rho(s): the
+        # side's bottom line (h = R cos(tilt)) if it touches within the segment
+        s_star = (R * c_t - h0) / s_t
+        hL = h0 + L * s_t
+        reach_end = L * c_t + np.sqrt(np.maximum((R - hL) * (R + hL), 0.0))
+        reach = np.where(s_star <= 0.0, rho0, np.where(s_star >= L, reach_end, s_star * c_t + R * s_t))
+        return a, rho0 + reach
+
+
+@dataclass(frozen=True)
 class Curvature:
     """Principal radii of curvature at the contact point [m]; inf for a plane.
 
-    ``R1a, R1b`` belong to ``ContactPair.body1``, ``R2a, R2b`` to ``body2``.
+    ``R1a, R1b`` belong to ``ContactPair.body1``, ``R2a, R2b`` to ``body2``;
+    a and b are common principal directions of both surfaces (for surfaces at
+    an angle, :func:`msf_contact.curvature.relative_curvature` returns them).
+    A line contact (R1b = R2b = inf, both straight along b) needs a
+    ``footprint`` (:class:`SideFootprint`) giving the contact's length.
     """
 
     R1a: float
     R1b: float
     R2a: float = math.inf
     R2b: float = math.inf
+    footprint: SideFootprint | None = None
 
     def __post_init__(self):
         for name in ("R1a", "R1b", "R2a", "R2b"):
             check_positive(f"radius {name}", getattr(self, name), allow_inf=True, unit="m")
-        if all(math.isinf(getattr(self, n)) for n in ("R1a", "R2a")) or all(
-            math.isinf(getattr(self, n)) for n in ("R1b", "R2b")
-        ):
+        flat_a = math.isinf(self.R1a) and math.isinf(self.R2a)
+        flat_b = math.isinf(self.R1b) and math.isinf(self.R2b)
+        if flat_a and flat_b:
             raise ValueError("two planes have no finite effective radius: at least one surface must be curved")
+        if self.footprint is None and (flat_a or flat_b):
+            raise ValueError(
+                f"line contact (R1a, R1b, R2a, R2b) = ({self.R1a}, {self.R1b}, {self.R2a}, {self.R2b}) m: both "
+                "surfaces are straight along one axis and the contact's length is the body's; give "
+                "footprint=SideFootprint(...) with the axis b along the line")
+        if self.footprint is not None and not flat_b:
+            raise ValueError(
+                f"footprint given but R1b = {self.R1b} m, R2b = {self.R2b} m: a footprint is the length of a "
+                "line contact along b, where both radii are infinite")
 
     @staticmethod
     def sphere_on_plane(R: float) -> "Curvature":
@@ -85,6 +158,11 @@ class Curvature:
     @staticmethod
     def two_spheres(R1: float, R2: float) -> "Curvature":
         return Curvature(R1, R1, R2, R2)
+
+    @staticmethod
+    def side_on_plane(footprint: SideFootprint) -> "Curvature":
+        """A capsule's or cylinder's side (radius and length of the footprint) on a plane."""
+        return Curvature(footprint.radius, math.inf, footprint=footprint)
 
 
 def _series_radius(r1: float, r2: float) -> float:
@@ -111,6 +189,7 @@ class ContactGeometry:
     k_hb: float
     k_ha_raw: float
     k_hb_raw: float
+    footprint: SideFootprint | None = None
 
     @property
     def sphere(self) -> bool:
@@ -118,7 +197,10 @@ class ContactGeometry:
 
     @property
     def R(self) -> float:
-        """Equivalent radius sqrt(R_a R_b) [m] (the radius for a sphere)."""
+        """Equivalent radius sqrt(R_a R_b) [m] (the radius for a sphere; R_a, the
+        side's radius, for a line contact, where it is only a length scale)."""
+        if self.footprint is not None:
+            return self.R_a
         return math.sqrt(self.R_a * self.R_b)
 
     @staticmethod
@@ -134,7 +216,7 @@ class ContactGeometry:
         # (24): k_h = (R - D2 R_2)/R_2 = R/R_2 - D2; R_2 = inf -> -D2
         k_ha = (0.0 if math.isinf(Rh_a) else R_a / Rh_a) - mod.D2
         k_hb = (0.0 if math.isinf(Rh_b) else R_b / Rh_b) - mod.D2
-        return ContactGeometry(R_a, R_b, max(k_ha, 0.0), max(k_hb, 0.0), k_ha, k_hb)
+        return ContactGeometry(R_a, R_b, max(k_ha, 0.0), max(k_hb, 0.0), k_ha, k_hb, curv.footprint)
 
 
 def contact_radius_exact(x, R):
@@ -148,12 +230,26 @@ def contact_radius(x, R, mode: str = "msf"):
 
 
 def contact_axes(x, geom: ContactGeometry, mode: str = "msf"):
-    """(26): full axes a = 2 k_pa sqrt(R_a x), b = 2 k_pb sqrt(R_b x) [m]."""
+    """(26): full axes a = 2 k_pa sqrt(R_a x), b = 2 k_pb sqrt(R_b x) [m]; a line
+    contact's from its footprint (``msf`` mode only: the footprint is exact geometry)."""
+    if geom.footprint is not None:
+        check_choice("kp_mode (a line contact's footprint is the exact geometry of (13))", mode, ("msf",))
+        return geom.footprint.axes(x)
     return 2.0 * contact_radius(x, geom.R_a, mode), 2.0 * contact_radius(x, geom.R_b, mode)
 
 
+def width(x, geom: ContactGeometry, mode: str = "msf"):
+    """W = psi sqrt(x) = (a + b)/2 [m] of (29) with (26), so that (37) reads
+    F_n = W (2 eta'_E x' + 2/3 E' x); a line contact's from its footprint. (n,)."""
+    if geom.footprint is not None:
+        a, b = contact_axes(x, geom, mode)
+        return 0.5 * (a + b)
+    return psi(x, geom, mode) * np.sqrt(np.asarray(x, dtype=float))
+
+
 def psi(x, geom: ContactGeometry, mode: str = "msf"):
-    """(29): curvature parameter psi = k_pa sqrt(R_a) + k_pb sqrt(R_b) [m^1/2]."""
+    """(29): curvature parameter psi = k_pa sqrt(R_a) + k_pb sqrt(R_b) [m^1/2]
+    (infinite for a line contact: use :func:`width`)."""
     return kp(x, geom.R_a, mode) * math.sqrt(geom.R_a) + kp(x, geom.R_b, mode) * math.sqrt(geom.R_b)
 
 
@@ -167,16 +263,24 @@ def shear_lengths(x, geom: ContactGeometry, mode: str = "msf"):
     """(36): P_bx = k_ha x + 2 k_pb sqrt(R_b x), P_ax = k_hb x + 2 k_pa sqrt(R_a x) [m].
 
     P_bx multiplies the force along Y (the plane XAY of axis a), P_ax along Z.
+    A line contact: 2 k_pb sqrt(R_b x) and 2 k_pa sqrt(R_a x) are its axes b, a.
     """
     x = np.asarray(x, dtype=float)
+    if geom.footprint is not None:
+        a, b = contact_axes(x, geom, mode)
+        return geom.k_ha * x + b, geom.k_hb * x + a
     P_bx = geom.k_ha * x + 2.0 * kp(x, geom.R_b, mode) * np.sqrt(geom.R_b * x)
     P_ax = geom.k_hb * x + 2.0 * kp(x, geom.R_a, mode) * np.sqrt(geom.R_a * x)
     return P_bx, P_ax
 
 
 def area(x, geom: ContactGeometry, mode: str = "msf"):
-    """(41): S_x = pi k_pa k_pb sqrt(R_a R_b) x [m^2]."""
+    """(41): S_x = pi k_pa k_pb sqrt(R_a R_b) x [m^2] (= pi a b / 4 with (26);
+    a line contact's with its footprint's axes)."""
     x = np.asarray(x, dtype=float)
+    if geom.footprint is not None:
+        a, b = contact_axes(x, geom, mode)
+        return 0.25 * math.pi * a * b
     return math.pi * kp(x, geom.R_a, mode) * kp(x, geom.R_b, mode) * math.sqrt(geom.R_a * geom.R_b) * x
 
 

@@ -35,7 +35,7 @@ from . import _scaling
 from . import closed_forms as cf
 from ._normal import SEPARATIONS, integrate_normal
 from ._validate import check_choice, check_finite, check_positive, check_range, check_tan_delta
-from .geometry import KP_MODES, ContactGeometry, Curvature, kp_clamped
+from .geometry import KP_MODES, ContactGeometry, Curvature, kp_clamped, shear_lengths, width
 from .materials import ContactPair
 
 OMEGA_MODES = ("self-consistent", "paper")
@@ -73,6 +73,10 @@ class ForceLaw(abc.ABC):
         self.kp_mode = check_choice("kp_mode", kp_mode, KP_MODES)
         self.geom = ContactGeometry.of(pair, curvature)
         self.moduli = pair.moduli()
+        if self.geom.footprint is not None and (self.kp_mode != "msf" or self.name != "msf"):
+            raise ValueError(
+                f"a line contact (footprint {self.geom.footprint}) has only the msf law with kp_mode 'msf' "
+                f"(docs/theory.md section 2a); got law {self.name!r}, kp_mode {self.kp_mode!r}")
 
     # -- contract ---------------------------------------------------------
     @abc.abstractmethod
@@ -148,9 +152,31 @@ class ForceLaw(abc.ABC):
         g = self.geom
         return self.kp(x, g.R_a) * math.sqrt(g.R_a) + self.kp(x, g.R_b) * math.sqrt(g.R_b)
 
+    def width(self, x):
+        """W = psi sqrt(x) = (a + b)/2 [m] (n,), (29) with (26); a line contact's
+        from its footprint (``geometry.width``)."""
+        if self.geom.footprint is None:
+            return self.psi(x) * np.sqrt(x)
+        return width(x, self.geom, self.kp_mode)
+
     def hertz_scale(self, v_n0, mass) -> np.ndarray:
-        """Elastic Hertz x_max [m] for these speeds and masses (a length scale)."""
-        return cf.hertz_x_max(mass, v_n0, self.moduli.E, self.geom.R)
+        """Elastic Hertz x_max [m] for these speeds and masses (a length scale);
+        a line contact's: the elastic x_max of its own (37), 1/2 m v^2 = int 2/3 E' W x dx."""
+        if self.geom.footprint is None:
+            return cf.hertz_x_max(mass, v_n0, self.moduli.E, self.geom.R)
+        return np.vectorize(self._elastic_x_max)(v_n0, mass)
+
+    def _elastic_x_max(self, v, m):
+        from scipy.integrate import quad
+
+        E = self.moduli.E
+
+        def excess(x):
+            work = quad(lambda s: (2.0 / 3.0) * E * s * float(self.width(np.array([s]))[0]), 0.0, x)[0]
+            return work - 0.5 * m * v * v
+
+        hi = float(cf.hertz_x_max(m, v, E, self.geom.R_a))  # the sphere of the side's radius: softer
+        return brentq(excess, 0.0, min(hi, 0.999 * self.x_limit), xtol=1e-15, rtol=1e-12)
 
     def solve_normal(self, v0: float, mass: float, onset: dict, n_samples: int = 0):
         """The isolated normal impact of one contact under this law (reference)."""
@@ -202,6 +228,9 @@ class MSFLaw(ForceLaw):
         else:
             check_positive("omega", omega, unit="rad/s")
             omega = float(omega)
+        if omega == "paper" and self.geom.footprint is not None:
+            raise ValueError("omega = 'paper' takes tau from the sphere's closed form (95); a line contact "
+                             "(footprint) needs omega = 'self-consistent' or a fixed number")
         self.omega = omega
         self.temperature = temperature
         self.strict = strict
@@ -251,7 +280,8 @@ class MSFLaw(ForceLaw):
     def scalable(self) -> bool:
         """True when the normal impact is one dimensionless family: moduli
         independent of frequency and k_p constant, or the msf k_p on a sphere."""
-        return not self.pair.frequency_dependent and (self.kp_mode != "msf" or self.geom.sphere)
+        return (not self.pair.frequency_dependent and self.geom.footprint is None
+                and (self.kp_mode != "msf" or self.geom.sphere))
 
     def _scales(self, v, m):
         """x_0 [m], t_0 [s], eps [-] of the dimensionless impact (see _scaling)."""
@@ -342,7 +372,11 @@ class MSFLaw(ForceLaw):
     def self_consistent(self, v: float, m: float):
         """omega_x with omega_x * tau(omega_x) = pi, tau the contact duration of
         this collision solved with this law (46), (87). Returns (omega, NormalSolution, moduli)."""
-        omega_h = math.pi / float(cf.hertz_tau(m, v, self.moduli.E, self.geom.R))
+        if self.geom.footprint is None:
+            omega_h = math.pi / float(cf.hertz_tau(m, v, self.moduli.E, self.geom.R))
+        else:  # a line contact: the elastic contact's own duration brackets the root
+            omega_h = math.pi / self.solve_normal(v, m, {"E": np.array([self.moduli.E]),
+                                                         "eta_E": np.zeros(1)}).tau
 
         def g(log_w):
             sol, _ = self._solve_with_omega(math.exp(log_w), v, m)
@@ -366,6 +400,8 @@ class MSFLaw(ForceLaw):
     def normal_force(self, x, xdot, onset):
         x = np.maximum(np.asarray(x, dtype=float), 0.0)
         xdot = np.asarray(xdot, dtype=float)
+        if self.geom.footprint is not None:  # (37) as W (2 eta x' + 2/3 E' x), W = (a + b)/2
+            return self.width(x) * (2.0 * onset["eta_E"] * xdot + (2.0 / 3.0) * onset["E"] * x)
         sx = np.sqrt(x)
         # (37): F_n = 2 eta psi x' sqrt(x) + 2/3 E' psi x^(3/2)
         return self.psi(x) * sx * (2.0 * onset["eta_E"] * xdot + (2.0 / 3.0) * onset["E"] * x)
@@ -377,6 +413,8 @@ class MSFLaw(ForceLaw):
         """(36): (P_bx, P_ax) [m], each (n,)."""
         g = self.geom
         x = np.maximum(np.asarray(x, dtype=float), 0.0)
+        if g.footprint is not None:
+            return shear_lengths(x, g, self.kp_mode)
         P_bx = g.k_ha * x + 2.0 * self.kp(x, g.R_b) * np.sqrt(g.R_b * x)
         P_ax = g.k_hb * x + 2.0 * self.kp(x, g.R_a) * np.sqrt(g.R_a * x)
         return P_bx, P_ax

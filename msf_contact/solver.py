@@ -390,7 +390,7 @@ def _msf_inline(law: ForceLaw) -> bool:
     may evaluate them with the math module (the condition of the engines'
     inlined MSF, ``engines._contacts._msf_inline``, plus the indicator)."""
     t = type(law)
-    return (isinstance(law, MSFLaw) and t.normal_force is MSFLaw.normal_force
+    return (isinstance(law, MSFLaw) and law.geom.footprint is None and t.normal_force is MSFLaw.normal_force
             and t.separation_indicator is MSFLaw.separation_indicator and t.shear_lengths is MSFLaw.shear_lengths
             and t.tangential_stiffness is MSFLaw.tangential_stiffness and t.psi is ForceLaw.psi
             and t.kp is ForceLaw.kp and t.contact_normal_force is ForceLaw.contact_normal_force)
