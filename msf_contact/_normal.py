@@ -282,7 +282,7 @@ def _crossed(g_old, g_new, direction):
     return (up and direction >= 0) or (down and direction <= 0)
 
 
-def dop853(fun, t_span, y0, *, rtol, atol, first_step, events=()):
+def dop853(fun, t_span, y0, *, rtol, atol, first_step, events=(), max_steps=None):
     """Integrate y' = fun(t, y) with scipy's DOP853 scheme and events.
 
     The same Runge-Kutta pair, error norm, step-size control, event location
@@ -291,7 +291,9 @@ def dop853(fun, t_span, y0, *, rtol, atol, first_step, events=()):
     without its per-step overhead: ``fun(t, y)`` gets y as a list of floats
     and returns a sequence of floats, and the dense output of a step is built
     only where an event or :meth:`Trajectory.sol` needs it. Units are those of
-    the problem; atol is a scalar or (n,) in the units of y.
+    the problem; atol is a scalar or (n,) in the units of y. ``max_steps``
+    bounds the work: more accepted steps end with status -1 and a message
+    naming the bound.
     """
     t, t_bound = float(t_span[0]), float(t_span[1])
     y = np.array(y0, dtype=float)
@@ -315,6 +317,8 @@ def dop853(fun, t_span, y0, *, rtol, atol, first_step, events=()):
     coef_rows = [coef[s, : s + 1] for s in range(_NS + 1)]
     c_rows = _C.tolist()
     while True:
+        if max_steps is not None and len(ts) > max_steps:
+            return out._finish(ts, ys, -1, f"more than max_steps = {max_steps} steps (the integration's work bound)")
         min_step = 10 * abs(np.nextafter(t, np.inf) - t)
         h_abs = max(h_abs, min_step)
         rejected = False

@@ -15,6 +15,22 @@ import numpy as np
 #: tg(beta) <= 1/3, equivalently k_x >= (pi - 1)/(pi + 1), paper (100).
 TAN_DELTA_MAX = 1.0 / 3.0
 
+# Bounds of plausibility (not of the model), so that no derived scale (R^5,
+# m R^2, the Hertz time and pressure) overflows or leaves meaning; refused by
+# name with the bound, before any work.
+#: Storage modulus E' [Pa]: 10 Pa (softer than any gel that holds its shape)
+#: to 1e13 Pa (ten times diamond's 1.05e12 Pa).
+E_MIN, E_MAX = 10.0, 1e13
+#: Density [kg/m^3] of a material: 1e-2 (100 times below air) to 1e5 (four
+#: times osmium, 22,590 kg/m^3).
+DENSITY_MIN, DENSITY_MAX = 1e-2, 1e5
+#: Mean density m / (4/3 pi R^3) of a body [kg/m^3]: as DENSITY_MIN up to
+#: 1e8 (a heavy core under a soft skin is allowed, a point mass is not).
+MEAN_DENSITY_MAX = 1e8
+#: Radius of a finite body [m]: 1e-9 (below, continuum contact mechanics
+#: does not hold) to 1e6 (an impact body, not a planet; R^5 stays ~1e30).
+RADIUS_MIN, RADIUS_MAX = 1e-9, 1e6
+
 
 #: Small-strain bound of the contact geometry on the approach, x_max/R (R the
 #: effective radius (13)): the contact radius is a = sqrt(R x) in (29), so at
@@ -77,6 +93,16 @@ def check_range(name: str, value, lo: float, hi: float, lo_open=False, hi_open=F
         lb = "(" if lo_open else "["
         hb = ")" if hi_open else "]"
         raise ValueError(f"{name} = {_show(value)} is outside {lb}{lo:g}, {hi:g}{hb}")
+    return arr
+
+
+def check_between(name: str, value, lo: float, hi: float, unit: str = "", why: str = "") -> np.ndarray:
+    """Refuse values outside [lo, hi] (and NaN, inf), naming the bound and why it exists."""
+    arr = check_finite(name, value)
+    if np.any(arr < lo) or np.any(arr > hi):
+        u = f" {unit}" if unit else ""
+        w = f" ({why})" if why else ""
+        raise ValueError(f"{name} = {_show(value)}{u} is outside [{lo:g}, {hi:g}]{u}{w}")
     return arr
 
 

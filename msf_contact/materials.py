@@ -23,7 +23,8 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ._validate import check_choice, check_finite, check_positive, check_range, check_tan_delta
+from ._validate import (DENSITY_MAX, DENSITY_MIN, E_MAX, E_MIN, check_between, check_choice, check_finite,
+                        check_positive, check_range, check_tan_delta)
 
 MODULUS_CONVENTIONS = ("msf", "hertz")
 
@@ -150,11 +151,17 @@ class Material:
 
     def __post_init__(self):
         check_positive(f"{self.name}.E_storage", self.E_storage, allow_inf=True, unit="Pa")
+        if not math.isinf(self.E_storage):
+            check_between(f"{self.name}.E_storage", self.E_storage, E_MIN, E_MAX, "Pa",
+                          "bounds of plausibility, msf_contact._validate.E_MIN/E_MAX; inf is a rigid body")
         check_finite(f"{self.name}.tan_delta", self.tan_delta)
         if self.tan_delta < 0:
             raise ValueError(f"{self.name}.tan_delta = {self.tan_delta!r} must be >= 0")
         check_range(f"{self.name}.nu", self.nu, -1.0, 0.5, lo_open=True, hi_open=True)
         check_positive(f"{self.name}.density", self.density, allow_inf=True, unit="kg/m^3")
+        if not math.isinf(self.density):
+            check_between(f"{self.name}.density", self.density, DENSITY_MIN, DENSITY_MAX, "kg/m^3",
+                          "bounds of plausibility, msf_contact._validate.DENSITY_MIN/MAX")
         if self.G_storage is not None:
             check_positive(f"{self.name}.G_storage", self.G_storage, allow_inf=True, unit="Pa")
 

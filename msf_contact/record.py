@@ -77,21 +77,37 @@ class ImpactRecord:
     outside_validity: list[str] = field(default_factory=list)
 
     def to_dict(self) -> dict[str, Any]:
+        """The record as plain JSON-able values. JSON has no NaN or inf: they
+        become None, and none is dropped silently. Infinities in ``inputs``
+        and ``parameters`` are a rigid body's modulus or a half-space's radius
+        and mass (null there means inf). Any NaN, and any non-finite result,
+        is named in ``non_finite`` (dotted paths) and in ``outside_validity``."""
         d = asdict(self)
-        return _clean(d)
+        found: list[tuple[str, float]] = []
+        out = _clean(d, "", found)
+        bad = [(path, v) for path, v in found
+               if math.isnan(v) or path.split(".")[0] not in ("inputs", "parameters")]
+        if bad:
+            out["non_finite"] = [path for path, _ in bad]
+            out["outside_validity"] = list(out["outside_validity"]) + [
+                f"{path} is not finite ({v!r}): a numerical failure, written as null" for path, v in bad]
+        return out
 
     def to_json(self, **kw) -> str:
         return json.dumps(self.to_dict(), **kw)
 
 
-def _clean(v):
-    """Replace non-finite floats by None (JSON has no NaN/inf) recursively."""
+def _clean(v, path: str = "", found: list | None = None):
+    """Replace non-finite floats by None (JSON has no NaN/inf) recursively;
+    each one replaced is appended to ``found`` as (dotted path, value)."""
     if isinstance(v, dict):
-        return {k: _clean(x) for k, x in v.items()}
+        return {k: _clean(x, f"{path}.{k}" if path else str(k), found) for k, x in v.items()}
     if isinstance(v, (list, tuple)):
-        return [_clean(x) for x in v]
+        return [_clean(x, f"{path}[{i}]", found) for i, x in enumerate(v)]
     if isinstance(v, float) and not math.isfinite(v):
+        if found is not None:
+            found.append((path, v))
         return None
     if hasattr(v, "item") and callable(v.item):  # numpy scalar
-        return _clean(v.item())
+        return _clean(v.item(), path, found)
     return v

@@ -32,7 +32,8 @@ from dataclasses import dataclass
 
 import numpy as np
 from ._normal import ATOL_SCALED, RTOL, dop853
-from ._validate import ValidityWarning, check_choice, check_finite, check_positive, check_range, small_strain_note
+from ._validate import (DENSITY_MIN, MEAN_DENSITY_MAX, RADIUS_MAX, RADIUS_MIN, ValidityWarning, check_between,
+                        check_choice, check_finite, check_positive, check_range, small_strain_note)
 from .geometry import area
 from .laws import ForceLaw, MSFLaw
 from .materials import Material
@@ -47,7 +48,13 @@ F_RATIO_FLOOR = 0.01
 @dataclass(frozen=True)
 class Body:
     """A colliding body. radius [m] (inf: half-space), mass [kg] (inf: fixed),
-    inertia [kg m^2] about the spin axis (default solid sphere 2/5 m R^2)."""
+    inertia [kg m^2] about the spin axis (default solid sphere 2/5 m R^2;
+    :meth:`sphere` gives hollow balls).
+
+    Finite radii lie in [RADIUS_MIN, RADIUS_MAX] and a finite sphere's mean
+    density m / (4/3 pi R^3) in [DENSITY_MIN, MEAN_DENSITY_MAX]
+    (``msf_contact._validate``: bounds of plausibility, so that no derived
+    scale overflows)."""
 
     material: Material
     radius: float
@@ -57,8 +64,21 @@ class Body:
     def __post_init__(self):
         check_positive("radius", self.radius, allow_inf=True, unit="m")
         check_positive("mass", self.mass, allow_inf=True, unit="kg")
+        if not math.isinf(self.radius):
+            check_between("radius", self.radius, RADIUS_MIN, RADIUS_MAX, "m",
+                          "bounds of plausibility, msf_contact._validate.RADIUS_MIN/MAX; inf is a half-space")
+            if not math.isinf(self.mass):
+                rho = self.mass / (4.0 / 3.0 * math.pi * self.radius**3)
+                if not DENSITY_MIN <= rho <= MEAN_DENSITY_MAX:
+                    raise ValueError(
+                        f"mass = {self.mass!r} kg with radius = {self.radius!r} m is a mean density of {rho:.6g} kg/m^3, "
+                        f"outside [{DENSITY_MIN:g}, {MEAN_DENSITY_MAX:g}] kg/m^3 (bounds of plausibility, "
+                        "msf_contact._validate.DENSITY_MIN/MEAN_DENSITY_MAX)")
         if self.inertia is not None:
             check_positive("inertia", self.inertia, allow_inf=True, unit="kg m^2")
+            if not (math.isinf(self.mass) or math.isinf(self.radius)) and self.inertia > self.mass * self.radius**2:
+                raise ValueError(f"inertia = {self.inertia!r} kg m^2 exceeds m R^2 = {self.mass * self.radius**2:.6g} "
+                                 "kg m^2, the inertia of all the mass on the surface (a thin shell has 2/3 m R^2)")
 
     @property
     def J(self) -> float:
@@ -66,19 +86,67 @@ class Body:
             return self.inertia
         if math.isinf(self.mass):
             return math.inf
+        if math.isinf(self.radius):
+            raise ValueError("a half-space body of finite mass has no default inertia: give inertia [kg m^2]")
         return 0.4 * self.mass * self.radius**2
 
     @staticmethod
-    def sphere(material: Material, radius: float, mass: float | None = None) -> "Body":
-        """A solid sphere; mass from the density when not given."""
-        check_positive("radius", radius, unit="m")
+    def sphere(material: Material, radius: float, mass: float | None = None, *,
+               wall: float | None = None) -> "Body":
+        """A solid sphere, or with ``wall`` [m] a hollow one (a shell of that
+        thickness, inner radius R - wall); mass [kg] from the density and the
+        solid or shell volume when not given. Inertia about a diameter:
+        2/5 m R^2 solid; hollow 2/5 m (R^5 - r^5)/(R^3 - r^3), which tends to
+        the thin shell's 2/3 m R^2 (a table-tennis ball: R = 20 mm, wall
+        0.4 mm, 2.7 g). The contact law stays the solid sphere's: a thin
+        shell's own flexure is not modelled.
+        """
+        check_between("radius", radius, RADIUS_MIN, RADIUS_MAX, "m",
+                      "bounds of plausibility, msf_contact._validate.RADIUS_MIN/MAX")
+        if wall is None:
+            if mass is None:
+                mass = 4.0 / 3.0 * math.pi * radius**3 * material.density
+            return Body(material, radius, mass)
+        check_positive("wall", wall, unit="m")
+        if wall > radius:
+            raise ValueError(f"wall = {wall!r} m exceeds the radius = {radius!r} m (a solid sphere: omit wall)")
+        r = radius - wall
         if mass is None:
-            mass = 4.0 / 3.0 * math.pi * radius**3 * material.density
-        return Body(material, radius, mass)
+            mass = 4.0 / 3.0 * math.pi * (radius**3 - r**3) * material.density
+        # (R^5 - r^5)/(R^3 - r^3) as a ratio of sums, without cancellation for thin walls
+        q = r / radius
+        ratio = (1 + q + q**2 + q**3 + q**4) / (1 + q + q**2)
+        return Body(material, radius, mass, inertia=0.4 * mass * radius**2 * ratio)
 
     @staticmethod
     def half_space(material: Material) -> "Body":
         return Body(material, math.inf, math.inf)
+
+
+#: Largest contact strain P_c/E' (peak pressure (20) over the effective
+#: storage modulus) of the linear viscoelastic material the model assumes:
+#: E' and E'' independent of amplitude are rarely measured beyond 0.2, and
+#: filled elastomers soften from ~1 % (Payne effect).
+STRAIN_MAX = 0.2
+
+
+def outside_validity(law: ForceLaw, x_max: float, Pc_max: float | None, f_max: float | None = None) -> list[str]:
+    """The reasons an impact left the model's validity, from its results:
+    x_max [m] over R beyond ``_validate.SMALL_STRAIN_X_OVER_R``, contact strain P_c,max/E'
+    [Pa/Pa] beyond :data:`STRAIN_MAX`, friction ratio f_max [-] above the
+    Coulomb cap mu. For the reference solver, the closed forms and the
+    engines' records alike (each adds its own: energy gain, omega dt)."""
+    notes = []
+    strain = small_strain_note(x_max, law.geom.R)
+    if strain:
+        notes.append(strain)
+    E = law.moduli.E
+    if Pc_max is not None and math.isfinite(E) and Pc_max / E > STRAIN_MAX:
+        notes.append(f"contact strain P_c,max/E' = {Pc_max / E:.4g} > {STRAIN_MAX:g}: beyond linear viscoelasticity "
+                     "(msf_contact.solver.STRAIN_MAX)")
+    if f_max is not None and law.mu is not None and f_max > law.mu * (1.0 + F_CAP_RTOL):
+        notes.append(f"friction ratio f_max = {f_max:.6g} above the Coulomb cap mu = {law.mu:g}")
+    return notes
 
 
 def reduced_mass(m1: float, m2: float) -> float:
@@ -97,10 +165,16 @@ def check_impact_inputs(law: ForceLaw, body1: Body, body2: Body, speed, angle_de
     check_finite("spin", spin)
     if math.isinf(body1.mass):
         raise ValueError("body 1 (the projectile) must have a finite mass")
+    if math.isinf(body1.radius):
+        raise ValueError("body 1 (the projectile) must have a finite radius")
     c = law.pair.sound_speed()
     if speed >= c:
         raise ValueError(f"speed = {speed!r} m/s is at or above the sound speed sqrt(E'/rho) = {c:.4g} m/s "
                          "of the softer body (the paper's model needs a subsonic impact, section 1)")
+    if abs(spin) * body1.radius >= c:
+        raise ValueError(f"spin = {spin!r} rad/s gives a surface speed |spin| R = {abs(spin) * body1.radius:.6g} m/s at "
+                         f"or above the sound speed sqrt(E'/rho) = {c:.4g} m/s of the softer body (|spin| < "
+                         f"{c / body1.radius:.6g} rad/s; the model needs subsonic contact-point speeds, section 1)")
 
 
 def simulate_impact(
@@ -163,7 +237,13 @@ def simulate_impact(
                 Ft, q, sdot = -(k * s + b * u), b * u * u, u
             else:
                 Fn, Fc = normal(x, vx)
-                Ft, q, sdot = -mode * mu * max(Fn, 0.0), 0.0, 0.0
+                cap = mu * max(Fn, 0.0)
+                Ft, q, sdot = -mode * cap, 0.0, 0.0
+                if kv_slide:  # the spring-dashpot in series with the slider: k s + b s' = mode mu F_n
+                    k, b = kb(x)
+                    if b > 0.0:
+                        sdot = (mode * cap - k * s) / b
+                        q = b * sdot * sdot
             return (vx, -Fn / m, sdot, Ft / m, -l1 * Ft / J1, -l2 * Ft * inv_J2, Fc * vx, (Fn - Fc) * vx, q)
 
         return rhs
@@ -206,8 +286,22 @@ def simulate_impact(
     h_fd = 1e-7 * ts  # finite-difference step of d(s_cap)/dt along the motion
 
     def make_ev_stick(mode):
-        """Sliding -> sticking where the slip rate mode (u - s_el') vanishes:
-        the elastic part s_el = mode s_cap follows the cap, the rest is slip."""
+        """Sliding -> sticking where the slip rate mode (u - s') vanishes.
+        With tangential damping (``kv_slide``) s is the spring-dashpot's own
+        displacement, integrated while sliding, and the slip rate vanishes
+        where the trial force mode (k s + b u) falls back to mu F_n. Without
+        damping the elastic part s_el = mode s_cap follows the cap, the rest
+        is slip."""
+
+        if kv_slide:
+            def ev_kv(t, y):
+                x, vx, s, vt, w1, w2 = y[:6]
+                k, b = kb(x)
+                u = vt if paper else u_of(x, vt, w1, w2)
+                return mode * (k * s + b * u) - mu * max(normal(x, vx)[0], 0.0)
+
+            ev_kv.terminal, ev_kv.direction = True, -1
+            return ev_kv
 
         def ev(t, y):
             x, vx, s, vt, w1, w2 = y[:6]
@@ -221,6 +315,11 @@ def simulate_impact(
     Escale = m * speed**2
     atol = np.array([xs, vn0, xs * vscale / vn0, vscale, vscale / R1, vscale / R1, Escale, Escale, Escale]) * ATOL_SCALED
     y = np.array((0.0, vn0, 0.0, vt0, spin, 0.0, 0.0, 0.0, 0.0))
+    kv_slide = False
+    if mu is not None:
+        k_s, b_s = kb(xs)
+        # relaxation rate k/b of the tangential spring-dashpot, times the time scale
+        kv_slide = b_s > 0.0 and k_s * ts <= KV_SLIDE_STIFFNESS_MAX * b_s
     mode = 0
     if mu is not None:  # initial mode: trial force against mu F_n just after onset
         x_eps = 1e-9 * xs
@@ -232,16 +331,22 @@ def simulate_impact(
     t0, t_stop = 0.0, 1e3 * ts
     tau1 = y_turn = None
     tau = ended_by = y_end = None
+    grazing = False  # the last switch came at once after the one before (see ZENO_SEGMENT)
     for _segment in range(MAX_SEGMENTS):
         events = [ev_turn, ev_overlap] + ([ev_force] if law.separation == "force-zero" else [])
         if law.x_limit is not None:
             events.append(ev_limit)
-        if mu is not None:
+        if mu is not None and not grazing:
             events.append(ev_slip if mode == 0 else make_ev_stick(mode))
-        sol = dop853(make_rhs(mode), (t0, t_stop), y, rtol=RTOL, atol=atol, events=events, first_step=1e-6 * ts)
+        t_end = min(t0 + GRAZING_HOLD * ts, t_stop) if grazing else t_stop
+        sol = dop853(make_rhs(mode), (t0, t_end), y, rtol=RTOL, atol=atol, events=events, first_step=1e-6 * ts,
+                     max_steps=MAX_STEPS)
         if sol.status == -1:
             raise RuntimeError(f"impact integration failed: {sol.message}")
         dense.add(t0, float(sol.t[-1]), sol.sol, mode)
+        if grazing and sol.status == 0 and t_end < t_stop:  # held through the grazing point: switch events back on
+            t0, y, grazing = t_end, np.array(sol.y[:, -1]), False
+            continue
         if ev_limit in events and len(sol.t_events[events.index(ev_limit)]):
             raise ValueError(f"the approach reached 2R = {law.x_limit:.6g} m: k_p = sqrt(2 - x/R) of (15) has no "
                              "real value beyond; the impact is outside the msf geometry (use a lower speed)")
@@ -257,8 +362,11 @@ def simulate_impact(
         if sol.status == 0:  # horizon reached: never separated
             tau, ended_by, y_end = float(sol.t[-1]), "capture", sol.y[:, -1]
             break
-        # a stick/slip switch
-        t0, y = float(sol.t_events[-1][0]), np.array(sol.y_events[-1][0])
+        # a stick/slip switch; one right after the previous switch is a grazing point (slip rate or
+        # cap margin touching zero): the new mode is held for GRAZING_HOLD t_s without switching
+        t_switch = float(sol.t_events[-1][0])
+        grazing = t_switch - t0 <= ZENO_SEGMENT * ts
+        t0, y = t_switch, np.array(sol.y_events[-1][0])
         x, vx, sv, vt, w1, w2 = y[:6]
         u = vt if paper else u_of(x, vt, w1, w2)
         if mode == 0:
@@ -266,10 +374,12 @@ def simulate_impact(
             trial = k * sv + b * u  # the force would be -trial; slide along its sign
             mode = int(np.sign(trial)) if trial != 0.0 else (int(np.sign(u)) or 1)
         else:
-            y[2] = mode * s_cap(x, vx) * (1.0 - 1e-9)
+            if not kv_slide:
+                y[2] = mode * s_cap(x, vx) * (1.0 - 1e-9)
             mode = 0
     else:
-        raise RuntimeError(f"more than {MAX_SEGMENTS} stick-slip transitions in one impact")
+        raise RuntimeError(f"more than MAX_SEGMENTS = {MAX_SEGMENTS} stick-slip transitions in one impact "
+                           f"(the work bound of the reference solver)")
     if tau1 is None:
         raise RuntimeError("the impact never reached maximum compression")
     sol = dense
@@ -280,9 +390,6 @@ def simulate_impact(
     if law.outside(np.array([x_max]))[0]:
         raise ValueError(f"x_max = {x_max:.6g} m >= 2R = {2 * law.geom.R:.6g} m: k_p = sqrt(2 - x/R) of (15) "
                          "has no real value; the impact is outside the msf geometry (use a lower speed)")
-    strain = small_strain_note(x_max, law.geom.R)
-    if strain:
-        outside.append(strain)
     if ended_by == "capture":
         outside.append("the bodies never separated (over-damped): outside the model's validity (100)")
 
@@ -315,6 +422,7 @@ def simulate_impact(
     f_min = float(np.min(ratio)) if ratio.size else None
     f_max = float(np.max(ratio)) if ratio.size else None
 
+    outside += outside_validity(law, x_max, Pc_max, f_max)
     v_out_n = max(-float(vx_end), 0.0)
     Wc1, Wb1 = float(y_turn[6]), float(y_turn[7])
     u_in = u_of(0.0, vt0, spin, 0.0)
@@ -351,8 +459,34 @@ def simulate_impact(
     )
 
 
-#: Guard against an endless chain of stick-slip switches in one impact.
-MAX_SEGMENTS = 200
+#: Work bound: stick-slip segments of one impact (random valid impacts need
+#: fewer than 20; a grazing point costs two).
+MAX_SEGMENTS = 400
+#: Work bound: DOP853 steps of one segment (an impact takes ~100-3,000).
+MAX_STEPS = 200_000
+#: A segment shorter than this many t_s (= x_s/V_n, ~ tau/3) that ends in
+#: another switch marks a grazing point: the slip rate (or the margin to the
+#: cap) touches zero without changing sign, e.g. where the cap mu F_n
+#: vanishes at force-zero separation, and the two modes would alternate at
+#: one instant forever (Zeno). The mode switched to is then held for
+#: GRAZING_HOLD t_s; at a grazing point both modes give the same force to
+#: first order, so the hold changes the impulse by O(mu F_n GRAZING_HOLD t_s).
+ZENO_SEGMENT = 1e-9
+GRAZING_HOLD = 1e-6
+#: Sliding with tangential damping b > 0 (the msf law's (36)-(37)): while the
+#: contact slides, the tangential spring k and dashpot b in series with the
+#: slider obey k s + b s' = mu F_n, so the force never exceeds the cap and
+#: sticking resumes where the trial force k s + b u falls back to it
+#: (elastic-viscous-plastic element; a DEM return map gives the same). The
+#: relaxation rate k/b makes the sliding phase stiff for nearly elastic
+#: pairs; when (k/b) t_s exceeds this bound (t_s = x_s/V_n, ~ tau/3), the
+#: limit b -> 0 is used instead (s follows the cap mu F_n/k); its force at
+#: the restart of sticking exceeds the cap by b d(s_cap)/dt, O(1/((k/b) t_s))
+#: < 0.1 % relative. 1000 keeps a sliding phase at a few hundred DOP853 steps.
+KV_SLIDE_STIFFNESS_MAX = 1000.0
+#: f_max above mu (1 + this) is reported as outside validity (event location
+#: and the dense grid are good to ~1e-9; this leaves room for the 2001-point grid).
+F_CAP_RTOL = 1e-6
 
 
 class _Piecewise:

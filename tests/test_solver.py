@@ -112,8 +112,11 @@ def test_paper_tangential_mode_is_flagged_when_it_gains_energy():
     the tangential force, so tangential+rotational energy can grow; the record says so."""
     law, b1, b2 = rubber_on_rigid()
     r = simulate_impact(law, b1, b2, 2.0, angle_deg=30.0, tangential="paper")
-    if r.W_diss_t < 0:
-        assert any("paper" in s for s in r.outside_validity)
+    assert r.W_diss_t < 0  # this impact gains energy in paper mode (-0.178 J measured)
+    assert any("paper" in s for s in r.outside_validity)
+    # the same impact with the spin fed back (contact-point mode) neither gains energy nor is flagged
+    cp = simulate_impact(law, b1, b2, 2.0, angle_deg=30.0)
+    assert cp.W_diss_t >= 0 and not cp.outside_validity
 
 
 @pytest.mark.parametrize(

@@ -170,8 +170,8 @@ def test_polish_falls_back_to_the_bracketed_root(monkeypatch):
 
 
 # ---------------------------------------------------------------- impacts ---
-def _solve_ivp_dop853(fun, t_span, y0, *, rtol, atol, first_step, events=()):
-    """The plain integrator: solve_ivp's DOP853 with dense output, as before issue 5."""
+def _solve_ivp_dop853(fun, t_span, y0, *, rtol, atol, first_step, events=(), max_steps=None):
+    """The plain integrator: solve_ivp's DOP853 with dense output, as before issue 5 (no step bound)."""
     return solve_ivp(fun, t_span, y0, method="DOP853", rtol=rtol, atol=atol, events=list(events),
                      dense_output=True, first_step=first_step)
 
