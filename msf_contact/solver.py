@@ -84,10 +84,8 @@ class Body:
     def J(self) -> float:
         if self.inertia is not None:
             return self.inertia
-        if math.isinf(self.mass):
+        if math.isinf(self.mass) or math.isinf(self.radius):  # a fixed body, or a half-space (it does not turn)
             return math.inf
-        if math.isinf(self.radius):
-            raise ValueError("a half-space body of finite mass has no default inertia: give inertia [kg m^2]")
         return 0.4 * self.mass * self.radius**2
 
     @staticmethod
