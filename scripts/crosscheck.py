@@ -197,8 +197,8 @@ def exudyn_impact(v0: float, t_hertz: float, stiffness: float, exponent: float, 
     ss.timeIntegration.numberOfSteps = 2 * STEPS_PER_CONTACT
     ss.timeIntegration.verboseMode = 0
     ss.timeIntegration.generalizedAlpha.spectralRadius = 1.0
-    ss.solutionSettings.writeSolutionToFile = False
-    ss.solutionSettings.sensorsWritePeriod = ss.timeIntegration.endTime / ss.timeIntegration.numberOfSteps
+    ss.solution.file.write = False
+    ss.solution.sensors.writePeriod = ss.timeIntegration.endTime / ss.timeIntegration.numberOfSteps
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         mbs.SolveDynamic(ss)

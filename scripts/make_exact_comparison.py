@@ -266,9 +266,49 @@ def figures(res: dict, out_dir: Path) -> list[str]:
     return names
 
 
+#: tan delta bands of the "where" table: (label, lower, upper) at pi/tau of the exact impact.
+TAN_BANDS = (("< 0.02", 0.0, 0.02), ("0.02-0.1", 0.02, 0.1), ("0.1-0.4", 0.1, 0.4), ("> 0.4", 0.4, math.inf))
+
+
+def band_rows(res: dict, q: str = "cor") -> list[str]:
+    """Largest |relative error| of quantity q per law and tan delta band."""
+    rows = ["| tan d(pi/tau) | cases | " + " | ".join(LAWS) + " |", "|---|---:|" + "---:|" * len(LAWS)]
+    for label, lo, hi in TAN_BANDS:
+        sel = [r for r in res.values() if lo <= r["tan_imp"] < hi]
+        if not sel:
+            continue
+        cells = []
+        for law in LAWS:
+            errs = [rel_err(r, law, q) for r in sel]
+            ok = [abs(x) for x in errs if x is not None]
+            cells.append("fails" if len(ok) < len(errs) else f"{100 * max(ok):.2f}%")
+        rows.append(f"| {label} | {len(sel)} | " + " | ".join(cells) + " |")
+    return rows
+
+
+def collapse(res: dict) -> float:
+    """Largest residual [-] of the exact COR about a cubic in log10 tan delta(pi/tau):
+    how closely the COR is one function of the loss factor at the impact's frequency."""
+    x = np.log10([r["tan_imp"] for r in res.values()])
+    y = np.array([r["exact"]["cor"] for r in res.values()])
+    return float(np.max(np.abs(y - np.polyval(np.polyfit(x, y, 3), x))))
+
+
+def loss_ratio(res: dict, law: str) -> tuple[float, float]:
+    """Range (min, max) over the cases of (1 - COR_law)/(1 - COR_exact)."""
+    r = [(1 - c[law]["cor"]) / (1 - c["exact"]["cor"]) for c in res.values() if "cor" in c.get(law, {})]
+    return min(r), max(r)
+
+
 def render(res: dict, figs: list[str]) -> str:
     parts = [HEADER.format(hash=case_hash())]
-    parts.append("## Summary (relative error against the exact solution, all cases)\n")
+    (a, b), (c, d) = loss_ratio(res, "msf"), loss_ratio(res, "msf-hertz/2")
+    parts.append(FINDINGS.format(collapse=collapse(res), n=len(res), msf_lo=a, msf_hi=b, half_lo=c, half_hi=d))
+    parts.append("## Where each law is within 1 %, 5 %: largest |COR error| per tan delta band\n")
+    parts += band_rows(res, "cor")
+    parts.append("\nThe same for the contact duration tau:\n")
+    parts += band_rows(res, "tau")
+    parts.append("\n## Summary (relative error against the exact solution, all cases)\n")
     parts += summary(res)
     parts.append("\n## COR and contact duration\n")
     parts.append("Relative errors (law - exact)/exact; `fails`: the law gave no result (message in the JSON).\n")
@@ -277,6 +317,7 @@ def render(res: dict, figs: list[str]) -> str:
     parts += force_rows(res)
     parts.append("\n## Figures\n")
     parts += [f"![{f}](figures/{f})\n" for f in figs]
+    parts.append(TAIL)
     return "\n".join(parts) + "\n"
 
 
@@ -298,6 +339,54 @@ the script's docstring: `msf` (defaults: E' of (9) without 1 - nu^2, k_p of
 elastic part), `msf-dma` (MSF at 1 Hz), `msf-hertz/2` (E'' halved, the
 correction discussed below), `kuwabara-kono` (A = tan delta/omega_H),
 `hunt-crossley` (Flores et al. recipe with the exact COR as its target).
+"""
+
+
+FINDINGS = """
+## Findings (numbers from the tables below)
+
+- The exact COR is nearly one function of tan delta at the impact's own
+  frequency pi/tau (Willert 2020's claim): over the {n} cases, spanning a
+  factor 500 in speed and six loss-peak heights, the exact COR departs at
+  most {collapse:.3f} from a single cubic in log10 tan delta.
+- MSF as shipped (`msf`) dissipates too much: its damping term of (37),
+  2 psi eta' x' sqrt(x) with eta' = E''/omega, is twice the Lee-Radok
+  damping of a Kelvin-Voigt solid with the same E''/omega
+  (2 eta sqrt(R) x' sqrt(x), theory.md section 7), so 1 - COR comes out
+  {msf_lo:.2f}-{msf_hi:.2f} times the exact one. The modulus convention and k_p (`msf`
+  against `msf-hertz`) barely change the COR; they set tau, x_max, F_max.
+- MSF at a fixed DMA frequency (`msf-dma`, 1 Hz) fails everywhere: eta' =
+  E''/omega at 1 Hz is the material's low-frequency viscosity, orders of
+  magnitude above the one the impact sees.
+- The correction offered (not applied by default): halve E'' and use the
+  Hertz elastic part, `make_law("msf", ContactPair(with_loss_scaled(ball, 0.5),
+  plate, convention="hertz"), curvature, kp_mode="hertz")`
+  (`msf_contact.viscoelastic.with_loss_scaled`). It is `msf-hertz/2` here and
+  behaves like Kuwabara-Kono with the Kelvin-Voigt recipe. The remaining
+  error (1 - COR is {half_lo:.2f}-{half_hi:.2f} times the exact one) comes
+  from reading a single frequency: a Kelvin-Voigt damping grows with
+  frequency while the standard solid's loss peaks, and the impact's force
+  pulse is broadband.
+- Hunt-Crossley given the exact COR as its target reproduces the COR to
+  its recipe's own inversion error, but not the contact time at large
+  loss (its force law shape is not a viscoelastic one).
+"""
+
+TAIL = """
+## A real elastomer and measured data
+
+Not done here. No elastomer Prony series with a citable source (E_inf,
+E_i, tau_i of a named compound) and no published set of COR and contact
+time against speed for balls of a material whose DMA master curve is also
+published were reachable from this session's sources (searched: Willert
+2020 and Willert, Kusche & Popov 2017 reach the abstract only; Cross 1999
+(Am. J. Phys. 67, 222) has force-compression loops of balls but no moduli).
+What would settle it: for one solid elastomer ball (radius, density) on a
+massive steel anvil, COR and contact time at 0.1-10 m/s, plus the DMA
+master curve E'(omega), E''(omega) of the same batch over ~1 Hz-100 kHz
+(time-temperature superposition) at the test temperature; give it as a
+`PronySeries` and `msf_contact.viscoelastic_impact` gives the exact
+small-strain prediction to compare.
 """
 
 

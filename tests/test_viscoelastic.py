@@ -175,3 +175,34 @@ def test_bad_inputs_name_the_parameter():
         viscoelastic_impact(Body.sphere(rubber, R, M), Body.half_space(Material.rigid_body()), V)
     with pytest.raises(ValueError, match="exactly one rigid"):
         viscoelastic_impact(Body.sphere(rubber, R, M), Body.half_space(rubber), V)
+
+
+def test_with_loss_scaled_halves_only_the_loss():
+    from msf_contact.viscoelastic import LEE_RADOK_LOSS_FACTOR, with_loss_scaled
+
+    prony = PronySeries(E, (2 * E,), (T_H,))
+    rubber = Material("sls", E, 0.2, NU, 1000.0, master_curve=prony)
+    half = with_loss_scaled(rubber, LEE_RADOK_LOSS_FACTOR)
+    w = math.pi / T_H
+    a, b = rubber.at(w), half.at(w)
+    assert b.E_storage == a.E_storage
+    assert b.E_loss == pytest.approx(0.5 * a.E_loss, rel=1e-15)
+    assert with_loss_scaled(Material("e", E, 0.2, NU, 1000.0), 0.5).tan_delta == pytest.approx(0.1)
+    with pytest.raises(ValueError, match="factor"):
+        with_loss_scaled(rubber, -1.0)
+
+
+def test_msf_damping_is_twice_lee_radok_for_kelvin_voigt():
+    """MSF at a fixed omega on a Kelvin-Voigt solid (E'' = eta omega): its
+    compression equals Kuwabara-Kono with A = 2 eta/E, and with E'' halved
+    the exact (Lee-Radok) compression A = eta/E."""
+    from msf_contact.viscoelastic import with_loss_scaled
+
+    A, w = 0.05 * T_H, math.pi / T_H
+    s = exact_normal_impact(Relaxation.kelvin_voigt(E, A * E), NU, R, M, V)
+    kv = Material("kv", E, A * w, NU, 1000.0)  # tan delta = eta omega / E
+    pair = ContactPair(with_loss_scaled(kv, 0.5), Material.rigid_body(), convention="hertz")
+    law = make_law("msf", pair, Curvature.sphere_on_plane(R), omega=w, kp_mode="hertz")
+    sol = law.solve_normal(V, M, law.onset_reference([V], [M]))
+    assert abs(sol.x_max / s.x_max - 1) < KV_KK_RTOL
+    assert abs(sol.tau1 / s.tau1 - 1) < KV_KK_RTOL
