@@ -419,6 +419,7 @@ class MujocoAdapter(EngineAdapter):
         self.jumps = 0
         #: contacts a jump interrupted (no record)
         self.interrupted = 0
+        self._forces_before_jump: ContactForces | None = None
         # (body1, body2, body2 fixed, force on body 1 [N], lever arms [m] (3,) from each
         # body's centre of mass to its contact point, world axes, at the step start)
         self._apply: list[tuple[int, int, bool, np.ndarray, np.ndarray, np.ndarray]] = []
@@ -530,7 +531,9 @@ class MujocoAdapter(EngineAdapter):
             f"dof {dof}"
         # the managed forces of the step on that body and the acceleration they give
         acc, pairs = 0.0, []
-        out = self.last_forces
+        # with the autoreset, MuJoCo's mj_resetData + mj_forward inside the step was a jump:
+        # the forces of the step that diverged are those from before it
+        out = self.last_forces if not autoreset else self._forces_before_jump
         if out is not None and body >= 0:
             for k, i in enumerate(np.asarray(out.pair, dtype=int)):
                 p = self._pairs[int(i)]
@@ -601,6 +604,7 @@ class MujocoAdapter(EngineAdapter):
         contacts of the pairs with a body in a kinematic tree that jumped are
         interrupted, not integrated across the jump (ContactManager.interrupt),
         and their a_ext restarts from gravity; the other pairs step on."""
+        self._forces_before_jump = self.last_forces
         trees = self._tracker.jumped
         hit = np.ones(len(self._pairs), bool) if trees is None else np.isin(self._trees, trees).any(axis=1)
         if not np.any(hit):
