@@ -59,7 +59,7 @@ from scipy.integrate import solve_ivp
 from scipy.optimize import brentq
 
 from . import closed_forms as cf
-from ._validate import check_choice, check_finite, check_positive, check_range
+from ._validate import check_choice, check_finite, check_positive, check_range, small_strain_note
 from .materials import Material, PronySeries
 from .record import ImpactRecord
 
@@ -369,6 +369,8 @@ def viscoelastic_impact(body1, body2, speed: float, *, temperature: float | None
     Fields without meaning for a hereditary law (the elastic/viscous split
     of the works (53)-(56), the paper's pressure (20), the collision
     frequency omega_x) are None; W_diss_n is the kinetic energy lost.
+    Above x_max/R = SMALL_STRAIN_X_OVER_R the record says so in
+    ``outside_validity``, as the reference solver's.
     """
     from .solver import reduced_mass  # the record's conventions, no engine
 
@@ -378,6 +380,10 @@ def viscoelastic_impact(body1, body2, speed: float, *, temperature: float | None
         raise ValueError("the exact viscoelastic impact needs exactly one rigid body (the other viscoelastic): "
                          f"got {m1.name!r} (rigid={m1.rigid}) and {m2.name!r} (rigid={m2.rigid})")
     soft = m2 if m1.rigid else m1
+    c_bar = math.sqrt(soft.E_storage / soft.density)
+    if speed >= c_bar:
+        raise ValueError(f"speed = {speed!r} m/s is at or above the bar-wave speed sqrt(E'/rho) = {c_bar:.4g} m/s "
+                         f"of {soft.name!r}: the quasi-static impact needs a subsonic speed (as simulate_impact)")
     rel = Relaxation.of_material(soft)
     if temperature is not None:
         if soft.wlf is None:
@@ -403,7 +409,7 @@ def viscoelastic_impact(body1, body2, speed: float, *, temperature: float | None
         W_diss_n=0.5 * m * (speed**2 - s.v_out**2), W_diss_t=0.0, Q_t=0.0, spin_in=0.0, spin_out=0.0,
         f_min=None, f_max=None, omega_x=None, omega_y=None, ended_by=s.ended_by,
         law="viscoelastic-exact", engine="reference", dt=None, parameters=params, inputs=inputs,
-        outside_validity=[],
+        outside_validity=[note for note in (small_strain_note(s.x_max, R),) if note],
     )
 
 

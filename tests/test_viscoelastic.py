@@ -175,6 +175,9 @@ def test_bad_inputs_name_the_parameter():
         viscoelastic_impact(Body.sphere(rubber, R, M), Body.half_space(Material.rigid_body()), V)
     with pytest.raises(ValueError, match="exactly one rigid"):
         viscoelastic_impact(Body.sphere(rubber, R, M), Body.half_space(rubber), V)
+    with pytest.raises(ValueError, match="bar-wave speed"):
+        elastic = Body.sphere(Material("e", E, 0.0, NU, 1000.0), R, M)  # sqrt(E/rho) = 71 m/s
+        viscoelastic_impact(elastic, Body.half_space(Material.rigid_body()), 80.0)
 
 
 def test_with_loss_scaled_halves_only_the_loss():
@@ -206,3 +209,14 @@ def test_msf_damping_is_twice_lee_radok_for_kelvin_voigt():
     sol = law.solve_normal(V, M, law.onset_reference([V], [M]))
     assert abs(sol.x_max / s.x_max - 1) < KV_KK_RTOL
     assert abs(sol.tau1 / s.tau1 - 1) < KV_KK_RTOL
+
+
+def test_record_flags_large_strain_like_the_reference_solver():
+    from msf_contact._validate import SMALL_STRAIN_X_OVER_R
+
+    soft = Material("soft", E, 0.0, NU, 1000.0)
+    ball = Body.sphere(soft, R, M)
+    plate = Body.half_space(Material.rigid_body())
+    slow, fast = viscoelastic_impact(ball, plate, 0.5), viscoelastic_impact(ball, plate, 40.0)
+    assert slow.x_max / R < SMALL_STRAIN_X_OVER_R < fast.x_max / R
+    assert slow.outside_validity == [] and "small-strain" in fast.outside_validity[0]
