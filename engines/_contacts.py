@@ -71,6 +71,10 @@ the onset constants only (omega_x, Hunt-Crossley chi, ...): a contact that
 begins at a vanishing closing speed would otherwise get a vanishing omega_x
 and an unbounded damping E''/omega_x.
 
+Islands. With the adapter's coupling blocks (:meth:`ContactManager.set_coupling`)
+contacts that share a moving body within a step are integrated together
+(:mod:`engines._islands`); a contact alone takes the path described here.
+
 Known limits. W is frozen over a step at the step-start geometry: the
 lever arm of a sub-cycled impact is R, not the mid-overlap R - x/2 the
 reference solver uses (an O(x_max/R) difference in spin and cor_t, 0.3-1 %
@@ -520,6 +524,7 @@ class ContactManager:
         kidx = {g: j for j, g in enumerate(kgs)}
         self._kg_of_pair = np.array([kidx.get(g, -1) for g in self._group_of], dtype=np.int64)
         self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
+        self._coupling: tuple[np.ndarray, Callable] | None = None  # set_coupling
         self._probe: Callable[[int], dict] | None = None
         self._probe_batch: Callable[[], Callable[[int], dict]] | None = None
         self._init_state(P)
@@ -568,6 +573,10 @@ class ContactManager:
         self.W_t = z.copy()  #: work done against the tangential force [J]
         self.outside = np.zeros(P, bool)
         self.settled = np.zeros(P, bool)  #: took the settled path in the last step (P,)
+        #: solved in an island of several contacts in the last step (P,): the adapters keep such a
+        #: pair's force out of the held forces of a_ext (the island couples it explicitly)
+        self.in_island = np.zeros(P, bool)
+        self._held_force = np.zeros((P, 3))  #: the step-averaged forces held into the next step [N] (P, 3)
         self.J = z3.copy()  #: timing-correction impulse applied in the last step, removed in the next [N s] (P, 3)
         self.dv_corr = z3.copy()  #: W J: the engine's contact-point velocity offset it causes [m/s] (P, 3)
         self.dvc_corr = z3.copy()  #: W_com J [m/s] (P, 3)
@@ -670,7 +679,38 @@ class ContactManager:
         n = n_unit
         t0 = float(kin.t)
         info = {"rows": k, "substeps": 0, "segments": 0, "onsets": 0, "ends": 0, "settled": 0,
-                "settled_iterations": 0}
+                "settled_iterations": 0, "island_rows": 0}
+        self.in_island[:] = False
+        multi = self._island_rows(pair, t0, n, v, W) if self._coupling is not None and k > 1 else None
+        if multi is not None:
+            out = self._step_with_islands(multi, pair, x, n, point, v, vc, W, Wc, a, t0, info)
+        else:
+            out = self._step_rows(pair, x, n, point, v, vc, W, Wc, a, t0, info)
+        if self._coupling is not None:  # the forces the adapters hold into the next step's a_ext
+            self._held_force[:] = 0.0
+            held = self.held(pair, t0 + self.dt)
+            self._held_force[pair[held]] = out.force[held]
+        return out
+
+    def held(self, pair, t_next: float) -> np.ndarray:
+        """Which of the pairs ``pair`` (k,) hold their force into the next step
+        (starting at ``t_next``), for the adapters' a_ext: in contact at the end
+        of this step, not in an island (whose forces are coupled explicitly),
+        and either resting (older than SETTLE_AFTER_DURATIONS estimated
+        durations, or on the settled path) or resolved by the engine step (an
+        estimated duration of at least STEPS_PER_CONTACT_MIN steps). Their
+        step-averaged force is the prediction of their force over the next
+        step, so it stays in the other pairs' a_ext; an impact shorter than
+        that (the whole contact, or most of it, inside a step) has already
+        given its impulse and is left out."""
+        act = self.active[pair] & ~self.in_island[pair]
+        resting = (t_next - self.t_onset[pair]) > SETTLE_AFTER_DURATIONS * self.tau_est[pair]
+        resolved = self.tau_est[pair] >= STEPS_PER_CONTACT_MIN * self.dt
+        return act & (self.settled[pair] | resting | resolved)
+
+    def _step_rows(self, pair, x, n, point, v, vc, W, Wc, a, t0, info) -> ContactForces:
+        """Each row on its own (the compiled kernel or the numpy path per law)."""
+        k = pair.shape[0]
         if self._all_kernel:
             force = self._step_compiled(pair, x, n, v, vc, W, Wc, a, t0, info)
             force /= self.dt
@@ -690,6 +730,102 @@ class ContactManager:
                 P = self._step_group(g, law, pair[rows], x[rows], n[rows], v[rows], vc[rows], W[rows], Wc[rows],
                                      a[rows], t0, info)
                 force[rows] = P / self.dt
+        self.last_step_info = info
+        return ContactForces(force=force, point=point.copy(), pair=pair.copy())
+
+    # ------------------------------------------------------------ islands --
+    def set_coupling(self, keys, blocks: Callable | None) -> None:
+        """Solve contacts that share a moving body together (engines._islands).
+
+        keys: (P, 2) int, a key per body of each pair (-1: fixed; the links of
+        one articulated tree share their root's key). blocks(pp, pq) -> (W
+        (b, 3, 3), Wc (b, 3, 3)): the cross inverse inertias J_p M^-1 J_q^T and
+        J_c,p M^-1 J_q^T [1/kg] between the current step's contact points of
+        the pairs pp (b,) and pq (b,) (p != q), called from inside ``step``.
+        None switches it off (each contact on its own, the others through a_ext)."""
+        if blocks is None:
+            self._coupling = None
+            return
+        keys = np.asarray(keys, dtype=np.int64)
+        if keys.shape != (len(self.pairs), 2):
+            raise ValueError(f"keys has shape {keys.shape}; expected ({len(self.pairs)}, 2)")
+        if not callable(blocks):
+            raise ValueError(f"blocks = {blocks!r} must be callable or None")
+        self._coupling = (keys, blocks)
+
+    def _island_rows(self, pair, t0, n, v, W):
+        """Island label per row for the rows in islands of two or more (others -1), or None."""
+        from ._islands import islands
+
+        keys = self._coupling[0][pair]
+        kk = keys[keys >= 0]
+        if kk.size < 2 or not np.any(np.bincount(kk) > 1):
+            return None
+        act = self.active[pair]
+        age_ok = self._resting(pair, t0, n, v, W)
+        lab = islands(pair, act, age_ok, keys)
+        counts = np.bincount(lab, minlength=pair.size)
+        multi = np.where(counts[lab] > 1, lab, -1)
+        self._rest_rows = age_ok
+        return multi if np.any(multi >= 0) else None
+
+    def _resting(self, pair, t0, n, v, W):
+        """(k,) rows in a resting contact: older than SETTLE_AFTER_DURATIONS
+        estimated durations and approaching slower than SETTLED_SPEED_RATIO v_x
+        (the settled path's criterion); a resting contact that is hit is not."""
+        act = self.active[pair]
+        rest = act & ((t0 - self.t_onset[pair]) > SETTLE_AFTER_DURATIONS * self.tau_est[pair])
+        if np.any(rest):
+            r = np.flatnonzero(rest)
+            vn = np.abs(_dot(v[r] - self.dv_corr[pair[r]], n[r]))
+            xr = np.maximum(self.x[pair[r]], 0.0)
+            nWn = np.einsum("ki,kij,kj->k", n[r], W[r], n[r])
+            F = np.zeros(r.size)
+            for g in np.unique(self._group_of[pair[r]]):
+                sel = self._group_of[pair[r]] == g
+                o = {key: arr[self._pos[pair[r][sel]]] for key, arr in self._onset[g].items()}
+                F[sel] = self._groups[g].contact_normal_force(xr[sel], np.zeros(int(sel.sum())), o)
+            vx = np.sqrt(np.maximum(F, 0.0) * xr * nWn)
+            rest[r] = vn <= SETTLED_SPEED_RATIO * vx
+        return rest
+
+    def _step_with_islands(self, multi, pair, x, n, point, v, vc, W, Wc, a, t0, info) -> ContactForces:
+        from ._islands import step_island
+
+        k = pair.shape[0]
+        force = np.zeros((k, 3))
+        alone = np.flatnonzero(multi < 0)
+        if alone.size:
+            out = self._step_rows(pair[alone], x[alone], n[alone], point[alone], v[alone], vc[alone], W[alone],
+                                  Wc[alone], a[alone], t0, info)
+            force[alone] = out.force
+        keys_all, blocks = self._coupling
+        for lab in np.unique(multi[multi >= 0]):
+            r = np.flatnonzero(multi == lab)
+            pp = pair[r]
+            keys = keys_all[pp]
+            # the row pairs of the island that share a moving body
+            cp, cq = [], []
+            for i in range(r.size):
+                for j in range(r.size):
+                    if i != j and np.any((keys[i][:, None] == keys[j][None, :]) & (keys[i][:, None] >= 0)):
+                        cp.append(i)
+                        cq.append(j)
+            cp, cq = np.array(cp, dtype=np.int64), np.array(cq, dtype=np.int64)
+            Wpq, Wcpq = blocks(pp[cp], pp[cq])
+            Wpq = as_array(Wpq, (3, 3))
+            Wcpq = as_array(Wcpq, (3, 3))
+            # a neighbour's force held last step is in this row's a_ext as its prediction; the island
+            # now couples that neighbour explicitly, so take the prediction out (no double count)
+            a_r = a[r].copy()
+            Fh = self._held_force[pp[cq]]
+            if np.any(Fh):
+                np.add.at(a_r, cp, -np.einsum("bij,bj->bi", Wpq, Fh))
+            info["island_rows"] += int(r.size)
+            self.in_island[pp] = True
+            P = step_island(self, pp, x[r], n[r], v[r], vc[r], W[r], Wc[r], a_r, t0, info, cp, cq, Wpq, Wcpq,
+                            self._rest_rows[r])
+            force[r] = P / self.dt
         self.last_step_info = info
         return ContactForces(force=force, point=point.copy(), pair=pair.copy())
 

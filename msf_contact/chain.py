@@ -261,7 +261,7 @@ def simulate_chain(
             if active[k]:
                 events.append(_event(lambda tt, yy, k=k: rate(yy, k), -1, terminal=False))
                 tags.append(("turn", k))
-                events.append(_event(lambda tt, yy, k=k: approach(yy, k), -1))
+                events.append(_event(lambda tt, yy, k=k: _overlap_g(approach(yy, k), rate(yy, k)), -1))
                 tags.append(("overlap-zero", k))
                 if laws[k].separation == "force-zero":
                     events.append(_event(lambda tt, yy, k=k: _force_g(kern[k][2], approach(yy, k), rate(yy, k)), -1))
@@ -313,6 +313,13 @@ def simulate_chain(
 def _event(fn, direction, terminal=True):
     fn.direction, fn.terminal = direction, terminal
     return fn
+
+
+def _overlap_g(x, xd):
+    """Overlap-zero event function: x, except a contact touching at rest
+    (x = x' = 0, a touching cradle before the strike reaches it), which has
+    not ended: the smallest positive float there, so only x < 0 is an end."""
+    return x if (x != 0.0 or xd != 0.0) else 5e-324
 
 
 def _force_g(indicator, x, xd):

@@ -106,7 +106,7 @@ class Shadow:
         ad, mgr = self.ad, self.ad.manager
         where = f"step {self.steps + 1}"
         required = np.array(mgr.required_pairs)
-        state = tuple(a.copy() for a in (ad._last_v, ad._last_dv, ad._have_last))
+        state = tuple(a.copy() for a in (ad._last_v, ad._last_dv, ad._have_last, ad._push))
         seen = {}
         real_step = mgr.step
 
@@ -122,13 +122,14 @@ class Shadow:
         finally:
             ad.compiled = True
             del mgr.step
-        want_state = tuple(a.copy() for a in (ad._last_v, ad._last_dv, ad._have_last))
+        want_state = tuple(a.copy() for a in (ad._last_v, ad._last_dv, ad._have_last, ad._push))
         want_fast, want_slow = ad._apply_fast, list(ad._apply)
         q_want = np.zeros(ad.model.nv)
         if want_fast is not None:
             ad._fast.apply(ad.data, *want_fast, out=q_want)
         for a, b in zip((ad._last_v, ad._last_dv, ad._have_last), state):
             a[:] = b
+        ad._push = state[3]  # the candidates' extra reach before the step (engines._islands.push_reach)
         replay = _Replay(mgr, required, seen["out"])
         ad.manager = replay
         try:

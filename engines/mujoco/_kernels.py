@@ -96,13 +96,14 @@ def _inverse_inertia(W, k, R, iI0, iI1, iI2, r0, r1, r2, inv_m, add):
 
 @njit(cache=True, error_model="numpy")
 def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, ximat, required,
-                    last_v, last_dv, have_last, dt, factor, coincident_rtol):
+                    last_v, last_dv, have_last, dt, factor, coincident_rtol, push):
     """Kinematics of every pair of the group and the rows of its candidates.
 
     gi, gf: the group's constants (module docstring); MjData arrays as they
     are; required (P,) bool; last_v, last_dv (P, 3), have_last (P,): the
     a_ext state, updated for every pair of the group; dt [s]; factor: the
-    adapter's CANDIDATE_FACTOR; coincident_rtol: engines._geometry's.
+    adapter's CANDIDATE_FACTOR; coincident_rtol: engines._geometry's; push
+    (P,) [m]: a pair's extra reach from its bodies' other contacts.
 
     Returns (err, pair (n,), x (n,), normal, point, v_rel, v_com_rel (n, 3),
     W, W_com (n, 3, 3), a_ext (n, 3), p1, p2 (k, 3)): the n candidates in
@@ -200,7 +201,7 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
         xd = -(vr0 * n0 + vr1 * n1 + vr2 * n2)
         xdd = -(a0 * n0 + a1 * n1 + a2 * n2)
         reach = factor * (_nonneg(xd) * dt + 0.5 * _nonneg(xdd) * dt * dt)  # closing_distance
-        if not (xx > -reach or required[p]):
+        if not (xx > -(reach + push[p]) or required[p]):
             continue
         pair[n] = p
         x[n] = xx

@@ -98,6 +98,7 @@ import mujoco
 import numpy as np
 
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
+from engines._islands import TOUCH_TOL, push_reach
 from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box_face, sphere_plane, sphere_sphere
 from engines.base import (
     STEPS_PER_CONTACT_MIN,
@@ -272,7 +273,7 @@ class _FreeGroup:
         gf[:, K.F_INVI2:K.F_INVI2 + 3] = np.where(self.free2[:, None], 1.0 / I2, 0.0)
         return gi, gf
 
-    def kinematics(self, m, d, dt, required, last_v, last_dv, have_last) -> dict:
+    def kinematics(self, m, d, dt, required, last_v, last_dv, have_last, push) -> dict:
         """Candidate rows of the group (a dict of ContactKinematics fields) and
         the a_ext bookkeeping of every pair of the group."""
         k = self.index.size
@@ -291,7 +292,7 @@ class _FreeGroup:
         xd = -np.einsum("ij,ij->i", v_rel, nrm)
         xdd = -np.einsum("ij,ij->i", a_ext, nrm)
         reach = closing_distance(xd, xdd, dt, CANDIDATE_FACTOR)
-        c = np.flatnonzero((x > -reach) | required[idx])
+        c = np.flatnonzero((x > -(reach + push[idx])) | required[idx])
         b1, b2 = self.b1[c], self.b2[c]
         xi1, xi2 = d.xipos[b1], d.xipos[b2]
         W = self._inverse_inertia(m, d, b1, p1[c] - xi1, self.inv_m1[c])
@@ -369,18 +370,9 @@ class _FreeGroup:
 
 
 def held_forces(manager, pair, t_next: float) -> np.ndarray:
-    """Which of the pairs ``pair`` (k,) hold their force into the next step
-    (starting at ``t_next``): in contact at the end of this step and either
-    resting (older than SETTLE_AFTER_DURATIONS estimated durations, or on the
-    settled path) or resolved by the engine step (an estimated duration of at
-    least STEPS_PER_CONTACT_MIN steps). Their step-averaged force is the
-    prediction of their force over the next step, so it stays in the other
-    pairs' a_ext; an impact shorter than that (the whole contact, or most of
-    it, inside a step) has already given its impulse and is left out."""
-    act = manager.active[pair]
-    resting = (t_next - manager.t_onset[pair]) > SETTLE_AFTER_DURATIONS * manager.tau_est[pair]
-    resolved = manager.tau_est[pair] >= STEPS_PER_CONTACT_MIN * manager.dt
-    return act & (manager.settled[pair] | resting | resolved)
+    """Which of the pairs ``pair`` (k,) hold their force into the next step:
+    :meth:`engines._contacts.ContactManager.held` (one rule for both adapters)."""
+    return manager.held(pair, t_next)
 
 
 class MujocoAdapter(EngineAdapter):
@@ -445,6 +437,14 @@ class MujocoAdapter(EngineAdapter):
             self._group_of[self._fast.index] = np.arange(self._fast.index.size)
             self._no_points = np.zeros((0, 3))  # p1, p2 when there is no free group
         self.manager.set_body_probe(self._probe, batch=self._probe_batch)
+        # contacts sharing a moving body are solved together (engines._islands): a body's key is
+        # its tree's root (the links of one chain are one island), -1 for a body welded to the world
+        keys = np.array([[-1 if p.fixed1 else int(model.body_rootid[p.body1]),
+                          -1 if p.fixed2 else int(model.body_rootid[p.body2])] for p in self._pairs], dtype=np.int64)
+        self._p1, self._p2 = np.zeros((P, 3)), np.zeros((P, 3))  # this step's contact points on body 1, 2
+        self._keys = keys
+        self._push = np.full(P, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
+        self.manager.set_coupling(keys, self._coupling_blocks)
         #: number of engine steps run through :meth:`step`
         self.steps = 0
         #: the manager's step-averaged forces of the last step (None: no candidate)
@@ -669,10 +669,12 @@ class MujocoAdapter(EngineAdapter):
         blocks = []
         W_fast = None
         if self._fast.index.size:
-            blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last)
+            blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last, self._push)
             W_fast = blk
+            self._p1[self._fast.index], self._p2[self._fast.index] = blk["p1_all"], blk["p2_all"]
             blocks.append(blk["rows"])
         slow, points, jacs = self._slow_rows(required)
+        self._keep_points(points)
         if slow is not None:
             blocks.append(slow)
         self._apply = []
@@ -680,6 +682,7 @@ class MujocoAdapter(EngineAdapter):
         # the manager is called every step, also without candidates (it completes records then)
         kin = self._assemble(blocks)
         out: ContactForces = self.manager.step(kin)
+        self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
         self.last_forces = out if kin.pair.size else None
         pair = np.asarray(out.pair, dtype=int)
         force = np.asarray(out.force, dtype=float)
@@ -718,14 +721,16 @@ class MujocoAdapter(EngineAdapter):
         if f.index.size:
             err, pair, x, nrm, point, v_rel, v_com, W, W_com, a_ext, p1, p2 = K.free_kinematics(
                 self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat, required,
-                self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL)
+                self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push)
             if err != K.ERR_NONE:
                 for _ in f._detect(d, d.geom_xpos[f.g1]):  # the numpy detection says what is wrong
                     pass
                 raise RuntimeError(f"free-group detection failed (code {err}) where the numpy detection passes")
             fast = dict(pair=pair, x=x, normal=nrm, point=point, v_rel=v_rel, v_com_rel=v_com, W=W, W_com=W_com,
                         a_ext=a_ext)
+            self._p1[f.index], self._p2[f.index] = p1, p2
         slow, points, jacs = self._slow_rows(required) if self._slow else (None, {}, [])
+        self._keep_points(points)
         self._apply = []
         self._apply_fast = None
         if slow is None and fast is not None:
@@ -733,13 +738,14 @@ class MujocoAdapter(EngineAdapter):
         else:
             kin = self._assemble([b for b in (fast, slow) if b is not None])
         out: ContactForces = mgr.step(kin)
+        self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
         self.last_forces = out if kin.pair.size else None
         pair = np.asarray(out.pair, dtype=np.int64)
         force = np.asarray(out.force, dtype=float).reshape(-1, 3)
         # held_forces, the free group's forces to apply, and the held pairs' own share of
         # the next a_ext if no impulse leaves it (_compute's bookkeeping)
         hit, keep, n_hit, n_unheld, *todo = K.after_step(
-            self._gi, self._group_of, pair, force, mgr.active, mgr.settled, mgr.t_onset, mgr.tau_est,
+            self._gi, self._group_of, pair, force, mgr.active & ~mgr.in_island, mgr.settled, mgr.t_onset, mgr.tau_est,
             float(d.time) + dt, SETTLE_AFTER_DURATIONS, STEPS_PER_CONTACT_MIN, mgr.dt,
             p1 if p1 is not None else self._no_points, p2 if p2 is not None else self._no_points, d.xipos,
             kin.W, self._last_dv, dt)
@@ -794,7 +800,7 @@ class MujocoAdapter(EngineAdapter):
                 a_ext = self._first_step_a_ext(p)
             self._last_v[i], self._last_dv[i], self._have_last[i] = v_rel, 0.0, True
             reach = float(closing_distance(-float(v_rel @ n), -float(a_ext @ n), dt, CANDIDATE_FACTOR))
-            if x <= -reach and not required[i]:
+            if x <= -(reach + self._push[i]) and not required[i]:
                 continue
             # W = J M^-1 J^T, W_com = J_c M^-1 J^T
             MinvJT = np.zeros((3, m.nv))
@@ -814,6 +820,33 @@ class MujocoAdapter(EngineAdapter):
                      v_rel=np.array(cols[4], dtype=float), v_com_rel=np.array(cols[5], dtype=float),
                      W=np.array(cols[6], dtype=float), W_com=np.array(cols[7], dtype=float),
                      a_ext=np.array(cols[8], dtype=float)), points, jacs)
+
+    def _keep_points(self, points: dict) -> None:
+        for i, (p1, p2, _J) in points.items():
+            self._p1[i], self._p2[i] = p1, p2
+
+    def _coupling_blocks(self, pp, pq):
+        """The manager's coupling blocks (ContactManager.set_coupling): W_pq =
+        J_p M^-1 J_q^T and Wc_pq = J_c,p M^-1 J_q^T (b, 3, 3) [1/kg] between the
+        step's contact points of pairs pp and pq (b,), each body's Jacobian at
+        its own point (``mj_jac``, ``mj_solveM``): exact for free bodies and
+        links of chains alike. Called inside the hook (the state is current)."""
+        m, d = self.model, self.data
+        J, Jc, MJ = {}, {}, {}
+        for i in np.unique(np.concatenate([pp, pq])).tolist():
+            p = self._pairs[i]
+            Ji = self._jacobian(p.body1, self._p1[i], self._jac).copy()
+            Ji -= self._jacobian(p.body2, self._p2[i], self._jac2)
+            Jci = self._jacobian(p.body1, d.xipos[p.body1], self._jac).copy()
+            Jci -= self._jacobian(p.body2, d.xipos[p.body2], self._jac2)
+            J[i], Jc[i] = Ji, Jci
+        for i in np.unique(pq).tolist():
+            out = np.zeros((3, m.nv))
+            mujoco.mj_solveM(m, d, out, np.ascontiguousarray(J[i]))
+            MJ[i] = out
+        W = np.array([J[a] @ MJ[b].T for a, b in zip(pp.tolist(), pq.tolist())]).reshape(-1, 3, 3)
+        Wc = np.array([Jc[a] @ MJ[b].T for a, b in zip(pp.tolist(), pq.tolist())]).reshape(-1, 3, 3)
+        return W, Wc
 
     _SHAPES = dict(pair=(), x=(), normal=(3,), point=(3,), v_rel=(3,), v_com_rel=(3,), W=(3, 3), W_com=(3, 3),
                    a_ext=(3,))

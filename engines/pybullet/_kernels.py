@@ -85,7 +85,7 @@ def _add_free_W(W, k, rot, j, inv_m, inv_I, r):
 
 @njit(cache=True)
 def fast_rows(f, j1, j2, s1, r1, plane, s2, size2, com, rot, v, w, b_free, inv_m, inv_I,
-              last_v_rel, last_dv, have_last, last_a_ext, pt, required, grav, dt, factor,
+              last_v_rel, last_dv, have_last, last_a_ext, pt, required, grav, dt, factor, push,
               o_pair, o_x, o_n, o_pt, o_v, o_vc, o_W, o_Wc, o_a):
     """Candidate rows of the fast pairs f (F,) (pair indices, ascending) and
     the a_ext bookkeeping of all of them (the adapter's ``_fast_rows``).
@@ -95,7 +95,8 @@ def fast_rows(f, j1, j2, s1, r1, plane, s2, size2, com, rot, v, w, b_free, inv_m
     size2 (3,) in its inertial axes, else a sphere of radius size2[0] centred
     at s2. Bodies: com, rot, v, w (B, ...); b_free, inv_m, inv_I (B, 3).
     Per pair (P, ...), updated in place: last_v_rel, last_dv (zeroed),
-    have_last, last_a_ext, pt. required (P,) bool; grav (3,) [m/s^2].
+    have_last, last_a_ext, pt. required (P,) bool; grav (3,) [m/s^2]; push
+    (P,) [m]: a pair's extra reach from its bodies' other contacts.
     Writes the candidates to o_* (rows 0..k-1, in the order of f) and returns
     (k, status, the first offending fast row or -1)."""
     k = 0
@@ -158,7 +159,7 @@ def fast_rows(f, j1, j2, s1, r1, plane, s2, size2, com, rot, v, w, b_free, inv_m
         xd = max(-(vr[0] * nrm[0] + vr[1] * nrm[1] + vr[2] * nrm[2]), 0.0)
         xdd = max(-(a[0] * nrm[0] + a[1] * nrm[1] + a[2] * nrm[2]), 0.0)
         reach = factor * (xd * dt + 0.5 * xdd * dt * dt)
-        if not (x > -reach or required[i]):
+        if not (x > -(reach + push[i]) or required[i]):
             continue
         o_pair[k] = i
         o_x[k] = x

@@ -68,6 +68,7 @@ import pybullet as pb
 from engines import _geometry
 from engines._geometry import cross_rows
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance, effective_inverse_inertia_free
+from engines._islands import TOUCH_TOL, push_reach
 from engines.base import STEPS_PER_CONTACT_MIN, ContactKinematics, EngineAdapter, PairSpec, check_law_curvature
 
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times
@@ -115,18 +116,9 @@ def _mats(q) -> np.ndarray:
 
 
 def held_forces(manager, pair, t_next: float) -> np.ndarray:
-    """Which of the pairs ``pair`` (k,) hold their force into the next step
-    (starting at ``t_next``): in contact at the end of this step and either
-    resting (older than SETTLE_AFTER_DURATIONS estimated durations, or on the
-    settled path) or resolved by the engine step (an estimated duration of at
-    least STEPS_PER_CONTACT_MIN steps). Their step-averaged force predicts
-    their force over the next step, so it stays in the other pairs' a_ext; an
-    impact shorter than that (the whole contact, or most of it, inside a
-    step) has already given its impulse and is left out."""
-    act = manager.active[pair]
-    resting = (t_next - manager.t_onset[pair]) > SETTLE_AFTER_DURATIONS * manager.tau_est[pair]
-    resolved = manager.tau_est[pair] >= STEPS_PER_CONTACT_MIN * manager.dt
-    return act & (manager.settled[pair] | resting | resolved)
+    """Which of the pairs ``pair`` (k,) hold their force into the next step:
+    :meth:`engines._contacts.ContactManager.held` (one rule for both adapters)."""
+    return manager.held(pair, t_next)
 
 
 @dataclass
@@ -210,6 +202,15 @@ class PybulletAdapter(EngineAdapter):
         self._steps = 0
         self._closed = False
         self.manager.set_body_probe(self._probe)
+        # contacts sharing a moving body are solved together (engines._islands): a free body's key
+        # is its slot, the links of one multibody share one key, a fixed body has none (-1)
+        B = len(self._body_list)
+        key = np.where(self._b_free, np.arange(B), -1)
+        key = np.where(self._b_link, B + self._b_uid, key)
+        self._keys = key[self._slot].astype(np.int64)
+        self._push = np.full(n, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
+        self._cur_bodies: _Bodies | None = None
+        self.manager.set_coupling(self._keys, self._coupling_blocks)
 
     # -- validation ---------------------------------------------------------
     def _check_body(self, b, label):
@@ -539,7 +540,7 @@ class PybulletAdapter(EngineAdapter):
         self._pt[f] = point
         reach = closing_distance(-np.einsum("ij,ij->i", v_rel, nrm), -np.einsum("ij,ij->i", a_ext, nrm), self._dt,
                                  CANDIDATE_FACTOR)
-        c = np.flatnonzero((x > -reach) | required[f])
+        c = np.flatnonzero((x > -(reach + self._push[f])) | required[f])
         j1c, j2c = j1[c], j2[c]
         W = self._free_W(bodies, j1c, r1[c])
         f2 = self._b_free[j2c]
@@ -567,7 +568,7 @@ class PybulletAdapter(EngineAdapter):
             self._f64, self._f_j1, self._f_j2, self._f_s1, self._f_r1, self._f_plane, self._f_s2, self._f_size2,
             bodies.com, bodies.rot, bodies.v, bodies.w, self._b_free, self._b_inv_m, self._b_inv_I,
             self._last_v_rel, self._last_dv, self._have_last, self._last_a_ext, self._pt, required,
-            np.asarray(grav, float), self._dt, CANDIDATE_FACTOR, *out.values())
+            np.asarray(grav, float), self._dt, CANDIDATE_FACTOR, self._push, *out.values())
         if status == self._k.COINCIDENT:
             raise ValueError(f"pairs[{int(self._fast[q])}]: sphere-sphere: the centres coincide, the contact "
                              "normal is undefined")
@@ -587,7 +588,7 @@ class PybulletAdapter(EngineAdapter):
         cand = []
         for i, x, nrm, point, v_rel, v_com_rel, a_ext, poses in self._kinematics(bodies, grav, required):
             closing = float(closing_distance(-(v_rel @ nrm), -(a_ext @ nrm), dt, CANDIDATE_FACTOR))
-            if x > -closing or required[i]:
+            if x > -(closing + self._push[i]) or required[i]:
                 W, Wc = self._inverse_inertia(i, poses, point)
                 cand.append((i, x, nrm, point, v_rel, v_com_rel, W, Wc, a_ext))
             self._last_v_rel[i] = v_rel
@@ -610,7 +611,9 @@ class PybulletAdapter(EngineAdapter):
         kin = ContactKinematics(t=self.time, **{key: np.reshape(val, (-1,) + shapes[key])
                                                 for key, val in cat.items()})
         kin.pair = np.asarray(kin.pair, int)
+        self._cur_bodies = bodies
         out = self.manager.step(kin)
+        self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
         pair = np.asarray(out.pair, int)
         force = np.asarray(out.force, float)
         hit = np.flatnonzero(np.any(force != 0.0, axis=1))
@@ -621,6 +624,34 @@ class PybulletAdapter(EngineAdapter):
             self._apply(bodies, ph, F, np.asarray(out.point, float)[hit])
         pb.stepSimulation(self.client)
         self._steps += 1
+
+    def _coupling_blocks(self, pp, pq):
+        """The manager's coupling blocks (ContactManager.set_coupling) for free
+        bodies in closed form: for each body b shared by pairs p and q, with
+        signs s = +1 (body 1) or -1 (body 2) and lever arms r from its centre
+        of mass to each pair's contact point, W_pq += s_p s_q (1/m - [r_p]x
+        I^-1 [r_q]x) and Wc_pq += s_p s_q / m (the centre of mass does not
+        turn). (b, 3, 3) each [1/kg]. A multibody's links are not coupled here
+        (only through a_ext: docs/engines.md)."""
+        bodies = self._cur_bodies
+        W = np.zeros((pp.size, 3, 3))
+        Wc = np.zeros((pp.size, 3, 3))
+        eye = np.eye(3)
+        for sp, gp in ((0, 1.0), (1, -1.0)):
+            for sq, gq in ((0, 1.0), (1, -1.0)):
+                jp, jq = self._slot[pp, sp], self._slot[pq, sq]
+                on = (jp == jq) & self._b_free[jp]
+                if not np.any(on):
+                    continue
+                j = jp[on]
+                R = bodies.rot[j]
+                Iinv = (R * self._b_inv_I[j][:, None, :]) @ R.transpose(0, 2, 1)
+                rp = _skew(self._pt[pp[on]] - bodies.com[j])
+                rq = _skew(self._pt[pq[on]] - bodies.com[j])
+                inv_m = self._b_inv_m[j][:, None, None]
+                W[on] += gp * gq * (inv_m * eye - rp @ Iinv @ rq)
+                Wc[on] += gp * gq * inv_m * eye
+        return W, Wc
 
     def _apply(self, bodies: _Bodies, ph, F, point) -> None:
         """Apply the forces F (k, 3) at ``point`` (k, 3) on body 1 of the pairs ph

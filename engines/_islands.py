@@ -1,0 +1,438 @@
+"""Contacts solved together: islands of contacts that share a moving body
+(issue 10, item 1).
+
+The contact manager integrates each contact inside the engine step with its
+own inverse inertia W_pp, the other contacts' forces entering only one step
+later through a_ext. Two stiff contacts on one body within a step then
+exchange their impulses a step late, and the pushes compound: a Newton's
+cradle of steel balls gained 60,000 times its energy at dt = 1 ms. Here the
+candidate rows of one step are grouped into islands (rows linked through a
+body that moves), and an island with more than one row is integrated as one
+system inside the step:
+
+    x_p'  = -(v_p . n_p)
+    v_p'  = sum_q W_pq f_q + a_p,     W_pq = J_p M^-1 J_q^T   (the adapter's blocks)
+    v_c,p' = sum_q Wc_pq f_q + a_p,   Wc_pq = J_c,p M^-1 J_q^T
+
+with f_q the law's force of row q while it is in contact (zero otherwise),
+classical RK4 at the internal step of the stiffest contact in contact (the
+smallest ``manager.h``), and the onsets, maximum compressions and ends of
+every row located by root finding on a partial RK4 step of the whole island
+(the island is advanced to the earliest event, the event is applied, and
+the integration goes on). A row that is not in contact moves with the
+island (its bodies are pushed by the others) until its own onset.
+
+Which rows join: rows sharing a moving body are linked, and a connected
+set of rows is an island when it holds a *dynamic* row (not in contact, or
+in contact for less than SETTLE_AFTER_DURATIONS estimated durations: a new,
+closing or young contact), so a strike on a resting row of balls couples the
+whole row within the step. A connected set of resting contacts only keeps
+the settled path row by row (a settled stack is a chain of implicit
+contacts whose held forces enter each other's a_ext, which is stable,
+tested in tests/test_multi_contact.py). A row alone keeps the manager's own
+path unchanged (bit-identical: tests/test_kernel.py, test_engine_core.py).
+
+Articulated links: the adapters give a link's body key as its tree's root,
+so contacts on links of one chain form one island, and W_pq comes from the
+engine's Jacobians and mass matrix (MuJoCo). pybullet's blocks cover free
+bodies; a multibody's links are coupled only through a_ext (stated in
+docs/engines.md).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ._contacts import (
+    F_RATIO_FLOOR, MAX_SEGMENTS, NY, SETTLE_AFTER_DURATIONS, _P, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, _Batch,
+    _dot, _find_root, _Rows, _tangent_basis,
+)
+
+
+#: Extra candidate reach [m] of a pair whose bodies touch others: a gap at
+#: the float64 rounding of positions (1e-12 m; spheres placed 2R apart touch
+#: to ~1e-18 m) counts as touching, so a touching neighbour is listed and
+#: carries the push down a row of touching bodies.
+TOUCH_TOL = 1e-12
+
+
+def push_reach(keys, pair, x, v_rel, dt: float, factor: float) -> np.ndarray:
+    """Extra candidate reach of every pair from its bodies' other contacts [m] (P,).
+
+    A body in a candidate contact can be pushed within the next step at up to
+    about that contact's relative speed (a struck ball leaves at up to twice
+    the striker's speed for a light target: the factor), so a pair sharing
+    that body closes its gap by up to factor |v_rel| dt: the adapters list
+    it as a candidate that far out, and it is solved in the island. The push
+    travels on through rows whose gap it closes (a row of touching balls).
+    keys (P, 2) body keys (-1 fixed); pair (k,), x (k,) [m], v_rel (k, 3)
+    [m/s]: the last step's rows."""
+    keys = np.asarray(keys)
+    P = keys.shape[0]
+    out = np.full(P, TOUCH_TOL)
+    if pair.size == 0 or keys.size == 0 or int(keys.max()) < 0:
+        return out
+    speed = np.zeros(int(keys.max()) + 1)
+    u = np.linalg.norm(np.asarray(v_rel, dtype=float).reshape(-1, 3), axis=1)
+    k1, k2 = keys[pair, 0], keys[pair, 1]
+    for kk in (k1, k2):
+        on = kk >= 0
+        np.maximum.at(speed, kk[on], u[on])
+    x = np.asarray(x, dtype=float).reshape(-1)
+    for _ in range(pair.size):  # through the rows the push closes, until nothing changes
+        s = np.maximum(np.where(k1 >= 0, speed[k1], 0.0), np.where(k2 >= 0, speed[k2], 0.0))
+        go = x > -(factor * dt * s + TOUCH_TOL)
+        before = speed.copy()
+        for kk in (k1, k2):
+            on = go & (kk >= 0)
+            np.maximum.at(speed, kk[on], s[on])
+        if np.array_equal(before, speed):
+            break
+    for side in (0, 1):
+        kk = keys[:, side]
+        on = kk >= 0
+        out[on] = np.maximum(out[on], factor * dt * speed[kk[on]] + TOUCH_TOL)
+    return out
+
+
+def islands(pair, active, age_ok, keys):
+    """Islands of the step's rows: (k,) island label per row (rows of one
+    island share a label; a row alone has a label of its own).
+
+    An island is a connected set of rows linked through shared moving bodies
+    that holds at least one dynamic row (not in contact, or in contact for
+    less than SETTLE_AFTER_DURATIONS durations); a connected set of resting
+    contacts only is left row by row (the settled path). pair: pair index per
+    row (k,); active: in contact at the step start (k,); age_ok: past
+    SETTLE_AFTER_DURATIONS durations (k,); keys: (k, 2) body keys of the rows'
+    two bodies (-1: fixed; links of one tree share their root's key)."""
+    k = pair.shape[0]
+    parent = np.arange(k)
+
+    def find(i):
+        while parent[i] != i:
+            parent[i] = parent[parent[i]]
+            i = parent[i]
+        return i
+
+    by_key: dict[int, list[int]] = {}
+    for r in range(k):
+        for b in keys[r]:
+            if b >= 0:
+                by_key.setdefault(int(b), []).append(r)
+    for rows in by_key.values():
+        a = find(rows[0])
+        for r in rows[1:]:
+            b = find(r)
+            if b != a:
+                parent[b] = a
+    lab = np.array([find(r) for r in range(k)])
+    # a component of resting contacts only keeps the settled path (each row on its own)
+    dynamic = ~(active & age_ok)
+    live = np.zeros(k, bool)
+    live[np.unique(lab[dynamic])] = True
+    return np.where(live[lab], lab, np.arange(k) + k)
+
+
+class _Island:
+    """The rows of one island over one engine step: per-law batches and the
+    coupling blocks."""
+
+    def __init__(self, mgr, p, n, W, Wc, a, cp, cq, Wpq, Wcpq):
+        self.mgr, self.p, self.n, self.W, self.a = mgr, p, n, W, a
+        self.k = p.size
+        self.cp, self.cq, self.Wpq, self.Wcpq = cp, cq, Wpq, Wcpq
+        t1, t2 = _tangent_basis(n)
+        self.groups = []  # (law group id, law, row indices, _Batch)
+        gid = mgr._group_of[p]
+        for g in np.unique(gid):
+            idx = np.flatnonzero(gid == g)
+            b = _Batch(mgr._groups[g], n[idx], t1[idx], t2[idx], W[idx], Wc[idx], a[idx], mgr._paper[p[idx]])
+            self.groups.append((g, mgr._groups[g], idx, b))
+        self.refresh_onset()
+
+    def refresh_onset(self):
+        mgr = self.mgr
+        for g, _law, idx, b in self.groups:
+            store = mgr._onset[g]
+            b.onset = {key: arr[mgr._pos[self.p[idx]]] for key, arr in store.items()}
+
+    def rhs(self, y, in_c):
+        """dy/dt (k, NY), F_n (k,), |F_t| (k,) of the island at y."""
+        dy = np.zeros_like(y)
+        Fn = np.zeros(self.k)
+        Ft = np.zeros(self.k)
+        for _g, _law, idx, b in self.groups:
+            on = in_c[idx]
+            if np.any(on):
+                j = idx[on]
+                bs = b if np.all(on) else b.sub(np.flatnonzero(on))
+                d, fn, ft = bs.rhs(y[j])
+                dy[j], Fn[j], Ft[j] = d, fn, ft
+        off = ~in_c
+        if np.any(off):  # free rows: x' = -(v . n), v' = a (plus the island's pushes below)
+            dy[off, _X] = -_dot(y[off, _V], self.n[off])
+            dy[off, _V] = self.a[off]
+            dy[off, _VC] = self.a[off]
+            dy[off, _PI] = y[off, _P]
+        if self.cp.size:
+            f = dy[:, _P]
+            np.add.at(dy[:, _V], self.cp, np.einsum("bij,bj->bi", self.Wpq, f[self.cq]))
+            np.add.at(dy[:, _VC], self.cp, np.einsum("bij,bj->bi", self.Wcpq, f[self.cq]))
+        return dy, Fn, Ft
+
+    def rk4(self, y, h, in_c):
+        k1, Fn, Ft = self.rhs(y, in_c)
+        k2, _, _ = self.rhs(y + 0.5 * h * k1, in_c)
+        k3, _, _ = self.rhs(y + 0.5 * h * k2, in_c)
+        k4, _, _ = self.rhs(y + h * k3, in_c)
+        return y + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4), Fn, Ft
+
+    def xdot(self, y):
+        return -_dot(y[:, _V], self.n)
+
+    def indicator(self, y):
+        out = np.ones(self.k)
+        for _g, law, idx, b in self.groups:
+            if not b.onset:  # no row of this law has begun a contact yet
+                continue
+            x = np.maximum(y[idx, _X], 0.0)
+            with np.errstate(invalid="ignore"):  # rows never in contact carry NaN constants
+                out[idx] = law.separation_indicator(x, -_dot(y[idx, _V], self.n[idx]), b.onset)
+        return out
+
+
+def step_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq, resting):
+    """Integrate the rows of one island over the engine step; returns the
+    impulses to apply (k, 3) [N s] (the manager divides by dt). Arguments as
+    ContactManager._step_group for the island's rows (normals unit), plus the
+    coupling blocks: rows cp (b,) receive W_pq (b, 3, 3) times the force of
+    rows cq (b,), and Wc_pq (b, 3, 3) on their centre-of-mass velocity;
+    resting (k,): the rows in a resting contact (ContactManager._resting),
+    whose internal x relaxes toward the engine's (a contact being hit keeps
+    its own x: the engine's leads it in an impact)."""
+    dt = mgr.dt
+    k = p.size
+    act = mgr.active[p].copy()
+    # the engine's velocities include last step's timing corrections (own and the neighbours')
+    v = v - mgr.dv_corr[p]
+    vc = vc - mgr.dvc_corr[p]
+    y = np.zeros((k, NY))
+    x0 = np.where(act, mgr.x[p], x_eng)
+    settle = act & resting
+    x0 = np.where(settle, x0 + mgr.settle_rate * (x_eng - x0), x0)
+    y[:, _X] = x0
+    y[:, _V] = v
+    y[:, _VC] = vc
+    s = mgr.s[p]
+    s_t = s - _dot(s, n)[:, None] * n
+    ls, lt = np.linalg.norm(s, axis=1), np.linalg.norm(s_t, axis=1)
+    y[:, _S] = np.where((lt > 0)[:, None], s_t * (ls / np.where(lt > 0, lt, 1.0))[:, None], 0.0)
+    y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT] = mgr.W_el[p], mgr.W_visc[p], mgr.Q_t[p], mgr.W_t[p]
+    isl = _Island(mgr, p, n, W, Wc, a, cp, cq, Wpq, Wcpq)
+    rows = _Rows(n, W, a)
+    in_c = act.copy()
+    t_loc = 0.0
+    for _ in range(MAX_SEGMENTS):
+        info["segments"] += 1
+        rem = dt - t_loc
+        if rem <= 0.0:
+            break
+        # contacts that begin now (x >= 0 with a closing speed: the manager's onset rule; also a
+        # row touching at rest while the island pushes: it closes from the next instant on)
+        xd = isl.xdot(y)
+        touching = (y[:, _X] >= 0) & (xd >= 0)
+        now = ~in_c & touching & ((y[:, _X] > 0) | (xd > 0) | bool(np.any(in_c)))
+        if np.any(now):
+            _begin_rows(mgr, p, np.flatnonzero(now), y, rows, t0 + t_loc)
+            in_c[now] = True
+            isl.refresh_onset()
+            info["onsets"] += int(np.count_nonzero(now))
+        if not np.any(in_c):
+            # no force acts: every row moves freely, the first onset (if any) ends the segment
+            fi = np.arange(k)
+            tc = mgr._free_flight(y.copy(), fi, rows, np.full(k, rem))
+            t_first = float(np.min(tc))
+            if not math.isfinite(t_first):
+                mgr._free_flight(y, fi, rows, np.full(k, rem))
+                t_loc = dt
+                break
+            mgr._free_flight(y, fi, rows, np.full(k, t_first))
+            t_loc += t_first
+            new = np.flatnonzero(np.isfinite(tc) & (tc <= t_first))
+            _begin_rows(mgr, p, new, y, rows, t0 + t_loc)
+            in_c[new] = True
+            isl.refresh_onset()
+            info["onsets"] += int(new.size)
+            continue
+        h_isl = float(np.min(mgr.h[p[in_c]]))
+        nsub = max(1, int(math.ceil(rem / h_isl - 1e-9)))
+        h = rem / nsub
+        stopped = False
+        for _i in range(nsub):
+            Y1, Fn0, Ft0 = isl.rk4(y, h, in_c)
+            info["substeps"] += 1
+            _peaks(mgr, p, in_c, y, Fn0, Ft0)
+            xd0, xd1 = isl.xdot(y), isl.xdot(Y1)
+            # first maximum compression of rows in contact (no change of the island's forces)
+            turn = in_c & ~mgr.turned[p] & (xd0 > 0) & (xd1 <= 0)
+            lo = np.zeros(k)
+            for j in np.flatnonzero(turn):
+                th = _root_row(lambda th, j=j: isl.xdot(isl.rk4(y, th * h, in_c)[0])[j], 0.0, 1.0, xd0[j], xd1[j])
+                Yt = isl.rk4(y, th * h, in_c)[0]
+                q = p[j]
+                mgr.turned[q] = True
+                mgr.tau1[q] = t0 + t_loc + th * h - mgr.t_onset[q]
+                mgr.x_turn[q] = Yt[j, _X]
+                mgr.x_max[q] = max(mgr.x_max[q], Yt[j, _X])
+                mgr.W_el_comp[q] = Yt[j, _WEL]
+                mgr.W_visc_comp[q] = Yt[j, _WVI]
+                lo[j] = th
+            mgr.x_max[p[in_c]] = np.maximum(mgr.x_max[p[in_c]], Y1[in_c, _X])
+            # ends of rows in contact, onsets of rows not in contact
+            g_end = _g_end(isl, mgr, Y1, p)
+            ends = in_c & (xd1 < 0) & (g_end <= 0)
+            g_on1 = np.minimum(Y1[:, _X], xd1)
+            g_on0 = np.minimum(y[:, _X], xd0)
+            ons = ~in_c & (g_on0 < 0) & (g_on1 >= 0)
+            if not (np.any(ends) or np.any(ons)):
+                y = Y1
+                t_loc += h
+                continue
+            # the earliest event of the island
+            cand = []
+            for j in np.flatnonzero(ends):
+                Ylo = isl.rk4(y, lo[j] * h, in_c)[0] if lo[j] > 0 else y
+                scale = _g_scales(isl, mgr, Ylo, p, j)
+                g_lo = max(_g_end_row(isl, mgr, Ylo, p, j, scale), 1e-300)
+                g_hi = _g_end_row(isl, mgr, Y1, p, j, scale)
+                th = _root_row(lambda th, j=j, sc=scale: _g_end_row(isl, mgr, isl.rk4(y, th * h, in_c)[0], p, j, sc),
+                               lo[j], 1.0, g_lo, g_hi)
+                cand.append((th, j, "end"))
+            for j in np.flatnonzero(ons):
+                th = _root_row(lambda th, j=j: -_g_on_row(isl, isl.rk4(y, th * h, in_c)[0], j), 0.0, 1.0,
+                               -g_on0[j], -g_on1[j])
+                cand.append((th, j, "onset"))
+            th_star = min(c[0] for c in cand)
+            Ye = isl.rk4(y, th_star * h, in_c)[0]
+            t_ev = t_loc + th_star * h
+            for th, j, kind in cand:
+                if th > th_star + 1e-12:
+                    continue
+                if kind == "end":
+                    by_force = mgr.pairs[p[j]].law.separation == "force-zero" and Ye[j, _X] > 0
+                    mgr._end(int(p[j]), Ye[j], float(t0 + t_ev), "force-zero" if by_force else "overlap-zero", n[j])
+                    in_c[j] = False
+                    info["ends"] += 1
+                else:
+                    _begin_rows(mgr, p, np.array([j]), Ye, rows, t0 + t_ev)
+                    in_c[j] = True
+                    isl.refresh_onset()
+                    info["onsets"] += 1
+            y = Ye
+            t_loc = t_ev
+            stopped = True
+            break
+        if not stopped:
+            t_loc = dt
+    else:
+        raise RuntimeError(f"more than {MAX_SEGMENTS} contact onsets/separations in one step of {dt!r} s")
+    # write back (as ContactManager._step_group)
+    mgr.active[p] = in_c
+    mgr.x[p] = y[:, _X]
+    mgr.xdot[p] = isl.xdot(y)
+    mgr.s[p] = y[:, _S]
+    mgr.vc[p] = y[:, _VC]
+    mgr.W_el[p], mgr.W_visc[p], mgr.Q_t[p], mgr.W_t[p] = y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT]
+    mgr.phase[p] = np.where(mgr.xdot[p] < 0, 1, 0)
+    for _g, law, idx, _b in isl.groups:
+        mgr.outside[p[idx]] |= law.outside(np.maximum(y[idx, _X], 0.0)) & in_c[idx]
+    J = y[:, _PI] / dt - 0.5 * y[:, _P] if mgr.timing_correction else np.zeros((k, 3))
+    mgr.settled[p] = False
+    if mgr.history:
+        Pn = np.einsum("ki,ki->k", y[:, _P], n) / dt
+        for r in np.flatnonzero(np.any(y[:, _P] != 0.0, axis=1)):
+            mgr._hist.setdefault(int(p[r]), []).append((t0, float(Pn[r])))
+    impulse = y[:, _P] + J - mgr.J[p]
+    mgr.J[p] = J
+    # the engine's velocity offset of every row from all the island's corrections
+    dv = np.einsum("kij,kj->ki", W, J)
+    dvc = np.einsum("kij,kj->ki", Wc, J)
+    if cp.size:
+        np.add.at(dv, cp, np.einsum("bij,bj->bi", Wpq, J[cq]))
+        np.add.at(dvc, cp, np.einsum("bij,bj->bi", Wcpq, J[cq]))
+    mgr.dv_corr[p] = dv
+    mgr.dvc_corr[p] = dvc
+    return impulse
+
+
+def _begin_rows(mgr, p, new, y, rows, t_abs):
+    """ContactManager._begin for island rows ``new``, law group by law group."""
+    if new.size == 0:
+        return
+    grp = mgr._group_of[p[new]]
+    for g in np.unique(grp):
+        sel = new[grp == g]
+        mgr._begin(g, mgr._groups[g], p, sel, y, rows, np.full(sel.size, t_abs))
+        kl = mgr._kernel_law[g]
+        if kl is not None:  # keep the compiled kernel's per-pair constants in step for later steps
+            from . import _kernel as K
+
+            store, pp = mgr._onset[g], p[sel]
+            for c, key in enumerate(K.ONSET_KEYS[kl[0]]):
+                mgr._oc[pp, c] = store[key][mgr._pos[pp]]
+
+
+def _peaks(mgr, p, in_c, y, Fn0, Ft0):
+    """Peak force and friction ratio at the substep start (as _integrate)."""
+    j = np.flatnonzero(in_c)
+    if j.size == 0:
+        return
+    pp = p[j]
+    Fn, Ft = Fn0[j], Ft0[j]
+    better = Fn > mgr.F_max[pp]
+    mgr.x_at_F[pp] = np.where(better, y[j, _X], mgr.x_at_F[pp])
+    mgr.F_max[pp] = np.maximum(mgr.F_max[pp], Fn)
+    ok = (Fn >= F_RATIO_FLOOR * mgr.F_max[pp]) & (Fn > 0)
+    ratio = np.where(ok, Ft / np.where(ok, Fn, 1.0), 0.0)
+    mgr.f_min[pp] = np.where(ok, np.minimum(mgr.f_min[pp], ratio), mgr.f_min[pp])
+    mgr.f_max[pp] = np.where(ok, np.maximum(mgr.f_max[pp], ratio), mgr.f_max[pp])
+
+
+def _g_end(isl, mgr, Y, p):
+    """Per row: min(x, B) with B the separation indicator for force-zero laws (sign only)."""
+    g = Y[:, _X].copy()
+    B = isl.indicator(Y)
+    for _g, law, idx, _b in isl.groups:
+        if law.separation == "force-zero":
+            g[idx] = np.minimum(g[idx], B[idx])
+    return g
+
+
+def _g_scales(isl, mgr, Y, p, j):
+    x = Y[j, _X]
+    B = abs(float(isl.indicator(Y)[j]))
+    return (x if x > 0 else 1.0, B if B > 0 else 1.0)
+
+
+def _g_end_row(isl, mgr, Y, p, j, scale):
+    """The end event function of row j, scaled (the manager's gfun)."""
+    gx = Y[j, _X] / scale[0]
+    if mgr.pairs[p[j]].law.separation != "force-zero":
+        return gx
+    xd = -float(Y[j, _V] @ isl.n[j])
+    gb = float(isl.indicator(Y)[j]) / scale[1] if xd < 0 else 1.0
+    return min(gx, gb)
+
+
+def _g_on_row(isl, Y, j):
+    return min(Y[j, _X], -float(Y[j, _V] @ isl.n[j]))
+
+
+def _root_row(g, lo, hi, g_lo, g_hi):
+    """_find_root for one row: g(theta) scalar with g(lo) > 0 >= g(hi)."""
+    th = _find_root(lambda t: np.array([g(float(t[0]))]), np.array([lo], float), np.array([hi], float),
+                    np.array([g_lo], float), np.array([g_hi], float))
+    return float(th[0])
