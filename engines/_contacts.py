@@ -90,6 +90,7 @@ from typing import Any, Callable
 import numpy as np
 
 from msf_contact import closed_forms as cf
+from msf_contact._validate import small_strain_note
 from msf_contact.geometry import area
 from msf_contact.laws import ForceLaw, HertzLaw, HuntCrossleyLaw, KuwabaraKonoLaw, MSFLaw, SpringDashpotLaw
 from msf_contact.record import ImpactRecord
@@ -1334,6 +1335,9 @@ class ContactManager:
         x_lim = law.x_limit
         if self.outside[p] or (x_lim is not None and self.x_max[p] >= x_lim):
             outside.append(f"x_max = {self.x_max[p]:.6g} m reached 2R: k_p = sqrt(2 - x/R) of (15) was clamped")
+        strain = small_strain_note(x_m, law.geom.R)
+        if strain:
+            outside.append(strain)
         kl = self._kernel_law[g]
         if kl is not None:
             Pc, Pc_F = K.peak_pressures(kl[0], kl[1], self._oc, p, x_m, float(self.x_at_F[p]), float(self.F_max[p]),

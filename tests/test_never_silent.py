@@ -61,3 +61,6 @@ def test_mujoco_bead_runs_without_autoreset():
     ad = _bead_in_mujoco(autoreset=False)
     (rec,) = ad.records
     assert 0.6 < rec.cor_n < 0.8
+    # 0.41 R deep: the engine's record says so too (it was empty at 0.74 R)
+    assert rec.x_max / R_BEAD > SMALL_STRAIN_X_OVER_R
+    assert any("small-strain" in s for s in rec.outside_validity), rec.outside_validity
