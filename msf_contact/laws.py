@@ -25,6 +25,7 @@ x/R -> 2 and ``outside(x)`` flags such contacts for the caller to report.
 from __future__ import annotations
 
 import abc
+import functools
 import math
 from typing import ClassVar
 
@@ -489,27 +490,86 @@ class KuwabaraKonoLaw(_HertzFamily):
         return np.asarray(x) + 1.5 * self.A * np.asarray(xdot)
 
 
+#: Hunt-Crossley damping recipes: ``flores`` chi = 8 (1 - e)/(5 e v0)
+#: (Flores et al. 2011), a closed-form approximation whose impact rebounds
+#: below e (0.8 gives 0.7885 with force-zero separation); ``exact`` the chi
+#: whose impact rebounds with e itself (:func:`hunt_crossley_alpha`).
+HC_DAMPINGS = ("flores", "exact")
+#: brentq tolerance on alpha = chi v0 of the exact recipe (relative).
+HC_ALPHA_RTOL = 1e-14
+
+
+@functools.lru_cache(maxsize=256)
+def hunt_crossley_alpha(cor: float) -> float:
+    """alpha = chi v0 [-] for which the Hunt-Crossley impact rebounds with
+    restitution ``cor`` = e exactly. m x'' = -K x^(3/2) (1 + chi x') gives
+    v dv/(1 + chi v) = -(K/m) x^(3/2) dx, and x returns to 0, so the
+    integral of v/(1 + chi v) from -e v0 to v0 vanishes:
+
+        alpha (1 + e) = ln((1 + alpha)/(1 - alpha e))
+
+    (the exact relation behind the approximations of Hunt-Crossley, Lankarani-
+    Nikravesh and Flores, whose first order is alpha = 8 (1 - e)/(5 e)).
+    Its root has alpha e < 1, so the force 1 + chi x' stays positive and
+    both separation rules end at x = 0 together. Solved by brentq on
+    (0, 1/e); the reference solver returns e to ~1e-11 (tests)."""
+    check_range("cor (Hunt-Crossley target restitution)", cor, 0.0, 1.0, lo_open=True)
+    if cor == 1.0:
+        return 0.0
+    e = float(cor)
+    if e >= 0.5:  # alpha <= 1.43: the log form, free of cancellation for small alpha
+
+        def miss(a):
+            return math.log1p(a) - math.log1p(-a * e) - a * (1.0 + e)
+    else:  # alpha e -> 1 as e -> 0: the exponentiated form, 1 - alpha e = (1 + alpha) exp(-alpha (1 + e))
+
+        def miss(a):
+            return a * e - 1.0 + (1.0 + a) * math.exp(-a * (1.0 + e))
+
+    # both forms are alpha^2 (e^2 - 1)/2 + O(alpha^3) < 0 below the root and > 0 at alpha = 1/e
+    hi = (1.0 - 1e-15) / e if e >= 0.5 else 1.0 / e
+    if miss(hi) <= 0:  # e so small that alpha = 1/e to double precision (the exp term underflows)
+        return hi
+    lo = min(1.5 * (1.0 - e * e) / (1.0 + e**3), 0.5 * hi)  # near the root of the cubic truncation
+    for _ in range(200):
+        if miss(lo) < 0:
+            break
+        lo *= 0.5
+    else:
+        raise ValueError(f"cor = {cor!r}: no Hunt-Crossley damping found for this restitution")
+    return brentq(miss, lo, hi, xtol=1e-300, rtol=HC_ALPHA_RTOL)
+
+
 class HuntCrossleyLaw(_HertzFamily):
-    """Hunt & Crossley (1975): F_n = K x^(3/2) (1 + chi x'), with the
-    damping of Flores et al. (2011): chi = 8 (1 - e)/(5 e v0), v0 the onset
-    speed, e the target restitution (0 < e <= 1)."""
+    """Hunt & Crossley (1975): F_n = K x^(3/2) (1 + chi x'), chi = alpha/v0
+    with v0 the onset speed and alpha from the target restitution e
+    (0 < e <= 1) by the ``damping`` recipe (:data:`HC_DAMPINGS`): ``flores``
+    (default, Flores et al. 2011) alpha = 8 (1 - e)/(5 e), which rebounds
+    below e (0.8 gives 0.7885); ``exact`` the alpha whose impact rebounds
+    with e (:func:`hunt_crossley_alpha`)."""
 
     name = "hunt-crossley"
 
-    def __init__(self, pair, curvature, *, cor, separation="force-zero", mu=None):
+    def __init__(self, pair, curvature, *, cor, damping="flores", separation="force-zero", mu=None):
         super().__init__(pair, curvature, separation=separation, mu=mu)
         check_range("cor (Hunt-Crossley target restitution)", cor, 0.0, 1.0, lo_open=True)
+        check_choice("damping", damping, HC_DAMPINGS)
         self.cor = float(cor)
+        self.damping = damping
+        self.alpha = (8.0 * (1 - self.cor) / (5.0 * self.cor) if damping == "flores"
+                      else hunt_crossley_alpha(self.cor))
 
     def parameters(self):
         p = super().parameters()
         p["cor"] = self.cor
+        p["damping"] = self.damping
+        p["alpha"] = self.alpha
         return p
 
     def onset(self, v_n0, mass):
         v = _arr(v_n0)
         check_positive("onset normal speed v_n0", v, unit="m/s")
-        return {"v_n0": v, "mass": _arr(mass, v.shape[0]), "chi": 8.0 * (1 - self.cor) / (5.0 * self.cor * v)}
+        return {"v_n0": v, "mass": _arr(mass, v.shape[0]), "chi": self.alpha / v}
 
     def normal_force(self, x, xdot, onset):
         x = np.maximum(np.asarray(x, dtype=float), 0.0)

@@ -180,7 +180,11 @@ materials = st.builds(
     law_name=st.sampled_from(["msf", "hertz", "kuwabara-kono", "hunt-crossley", "spring-dashpot"]),
 )
 def test_properties_over_random_valid_inputs(mat, radius, speed_frac, angle, law_name):
-    """No impact gains energy, 0 <= COR <= 1, tau > 0, same inputs -> same record."""
+    """No impact gains energy unless its record says so, 0 <= COR <= 1, tau > 0,
+    same inputs -> same record. (The tangential spring F_t = -k(x) s with a
+    stiffness that follows the approach is not conservative: a spring-dashpot
+    impact that separates at force zero with x > 0 can end with more
+    tangential energy, pinned in test_tangential_energy_gain_is_the_models.)"""
     pair = ContactPair(mat, RIGID)
     speed = speed_frac * pair.sound_speed()
     extra = {"A": 1e-6} if law_name == "kuwabara-kono" else {"cor": 0.8} if law_name == "hunt-crossley" else {}
@@ -191,10 +195,27 @@ def test_properties_over_random_valid_inputs(mat, radius, speed_frac, angle, law
     assert r.tau > 0 and r.tau1 > 0 and r.tau2 > 0
     E_in = 0.5 * b1.mass * speed**2
     assert r.W_diss_n >= -1e-9 * E_in
-    assert r.W_diss_t >= -1e-9 * E_in
+    assert r.W_diss_t >= -1e-9 * E_in or any("energy grew" in s for s in r.outside_validity)
     again = simulate_impact(law, b1, b2, speed, angle_deg=angle)
     assert again.to_dict() == r.to_dict()
     assert np.isfinite(r.F_max) and r.F_max > 0
+
+
+def test_tangential_energy_gain_is_the_models():
+    """Found by the property test above (issue 12's corpus): a spring-dashpot
+    impact, no friction, gains 0.29 % of its tangential energy; an independent
+    fixed-step integration of the same equations gains the same (-8.897e-5 J
+    at tau/80,000 against the solver's -8.921e-5 J), so it is the model's
+    (the stiffness 8 G sqrt(R x) changes under a loaded spring, and the
+    contact ends at x = 0.49 x_max with the spring loaded), and the record
+    says so."""
+    mat = Material("random", 1e6, 0.25, 0.375, 500.0)
+    pair = ContactPair(mat, RIGID)
+    law = make_law("spring-dashpot", pair, Curvature.sphere_on_plane(0.0625))
+    r = simulate_impact(law, Body.sphere(mat, 0.0625), Body.half_space(RIGID), 0.0078125 * pair.sound_speed(),
+                        angle_deg=20.0)
+    assert r.W_diss_t == pytest.approx(-8.921e-5, rel=1e-3)
+    assert any("tangential and rotational energy grew" in s for s in r.outside_validity)
 
 
 # ----------------------------------------------------------- Coulomb cap ---
