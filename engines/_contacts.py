@@ -96,7 +96,7 @@ from msf_contact.laws import ForceLaw, HertzLaw, HuntCrossleyLaw, KuwabaraKonoLa
 from msf_contact.record import ImpactRecord
 
 from . import _kernel as K
-from .base import STEPS_PER_CONTACT_MIN, ContactForces, ContactKinematics, PairSpec, as_array
+from .contract import STEPS_PER_CONTACT_MIN, ContactForces, ContactKinematics, PairSpec, as_array
 
 TANGENTIAL_MODES = ("contact-point", "paper")
 

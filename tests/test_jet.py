@@ -78,10 +78,10 @@ def run_pool(engine, spec, impacts, seed=0):
 
 def _bodies(pool):
     if pool.engine == "mujoco":
-        return pool.model.nbody
+        return pool.bodies.model.nbody
     import pybullet as pb
 
-    return pb.getNumBodies(physicsClientId=pool.client)
+    return pb.getNumBodies(physicsClientId=pool.bodies.client)
 
 
 @pytest.fixture(scope="module", params=ENGINES)

@@ -2,7 +2,7 @@
 ``mjcb_passive`` hook (:mod:`.adapter`), the scenes (:mod:`.scenes`) and
 MuJoCo's own soft contact for comparison (:mod:`.builtin`).
 
-Registered engines (:func:`engines.base.register_engine`):
+Engines of the registry (:data:`engines.base.ENGINES`, resolved by name):
 
 - ``"mujoco"``: :func:`run_impact`, one isolated impact with a law;
 - ``"mujoco-builtin"``: :func:`run_builtin_impact`, the same impact with
@@ -21,7 +21,7 @@ from msf_contact.laws import ForceLaw
 from msf_contact.record import ImpactRecord
 from msf_contact.solver import TANGENTIAL_MODES, Body, check_impact_inputs, reduced_mass
 
-from ..base import PairSpec, register_engine
+from ..base import PairSpec
 from . import scenes
 from .adapter import MujocoAdapter, installed
 from .builtin import builtin_impact
@@ -124,9 +124,6 @@ def run_until_separated(adapter: MujocoAdapter, max_steps: int, pair: int = 0) -
 #: (:func:`engines.mujoco.builtin.builtin_impact`).
 run_builtin_impact = builtin_impact
 
-
-register_engine("mujoco", run_impact)
-register_engine("mujoco-builtin", run_builtin_impact)
 
 __all__ = ["MujocoAdapter", "installed", "run_impact", "run_builtin_impact", "run_until_separated", "scenes",
            "builtin_impact"]

@@ -1,7 +1,8 @@
 """pybullet back-end: the laws through external forces
 (:class:`PybulletAdapter`), pybullet's own contact for comparison
 (:mod:`.builtin`), and the isolated impact of the command line
-(:func:`run_impact`, registered as ``pybullet`` and ``pybullet-builtin``)."""
+(:func:`run_impact` and :func:`run_builtin_registered`, the engines
+``pybullet`` and ``pybullet-builtin`` of :data:`engines.base.ENGINES`)."""
 
 from __future__ import annotations
 
@@ -31,7 +32,7 @@ def _import_pybullet_quietly():
 
 _import_pybullet_quietly()
 
-from engines.base import PairSpec, register_engine
+from engines.contract import PairSpec
 from msf_contact.laws import ForceLaw
 from msf_contact.record import ImpactRecord
 from msf_contact.solver import TANGENTIAL_MODES, Body, check_impact_inputs, reduced_mass
@@ -41,7 +42,7 @@ from . import builtin as _builtin
 from . import scenes
 from .adapter import PybulletAdapter
 
-__all__ = ["PybulletAdapter", "run_impact", "run_builtin_impact", "scenes"]
+__all__ = ["PybulletAdapter", "run_impact", "run_builtin_impact", "run_builtin_registered", "scenes"]
 
 #: The run stops with an error when the contact has not ended after this
 #: many times the elastic Hertz contact duration at the impact speed (plus
@@ -151,12 +152,9 @@ def run_builtin_impact(body1: Body, body2: Body, speed: float, angle_deg: float 
     return rec
 
 
-def _run_builtin_registered(law, body1, body2, speed, angle_deg=90.0, spin=0.0, *, tangential="contact-point",
+def run_builtin_registered(law, body1, body2, speed, angle_deg=90.0, spin=0.0, *, tangential="contact-point",
                             dt=1e-4, gap=0.0, gravity=None, builtin=None):
     """``pybullet-builtin`` for the command line: run_impact's signature; the law is not used."""
     return run_builtin_impact(body1, body2, speed, angle_deg, spin, dt=dt, gap=gap, gravity=gravity,
                               builtin=builtin or {}, law=law)
 
-
-register_engine("pybullet", run_impact)
-register_engine("pybullet-builtin", _run_builtin_registered)

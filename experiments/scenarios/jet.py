@@ -24,11 +24,10 @@ Layers:
   size class at the fastest particle: tg(beta) <= 1/3 (100), the impact speed
   below the sound speed, x_max < 2R (reference solver), and refuses with a
   message naming the bound.
-- :class:`JetPool`: the engine-agnostic pool driver (emission schedule,
-  parking, record bookkeeping, aggregates). The engine back ends are
-  :class:`engines.mujoco.jet.MujocoJet` and
-  :class:`engines.pybullet.jet.PybulletJet`, with the same API; use
-  :func:`make_pool`.
+- :class:`JetPool`: the jet's driver (emission schedule, flight checks,
+  record bookkeeping, aggregates) over an engine's recycled pool of spheres
+  (:class:`engines.pool.SpherePool`: the bodies, the park, the adapter;
+  MuJoCo or pybullet); use :func:`make_pool`.
 - The scenario ``jet`` for ``msf-contact run`` (TOML, see
   ``experiments/configs/jet.toml``): one cell per (engine, chunk of impacts).
 
@@ -46,7 +45,6 @@ step with a wrong estimate is spent in free flight.
 
 from __future__ import annotations
 
-import abc
 import bisect
 import json
 import math
@@ -54,13 +52,13 @@ import os
 import resource
 import sys
 import time
-from collections import deque
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable, ClassVar, Sequence
+from typing import Any, Callable, Sequence
 
 import numpy as np
 
+from engines.pool import DONE, FLIGHT, PARKED, PlateShape, SphereScene, sphere_pool_class
 from msf_contact import ValidityWarning
 
 from ..config import ConfigError, Field, build_material, material_fields, validate
@@ -739,7 +737,6 @@ class JetAggregates:
 # --------------------------------------------------------------------------
 # The pool driver (engine-agnostic part)
 # --------------------------------------------------------------------------
-PARKED, FLIGHT, DONE = 0, 1, 2
 #: On a plane plate without particle-particle contacts the positions of the
 #: particles in flight are read every this many steps (the checks for a
 #: particle that flew off upward or passed through the plate are safety
@@ -868,12 +865,13 @@ class JetCounts:
     steps: int = 0
 
 
-class JetPool(abc.ABC):
+class JetPool:
     """A fixed pool of particles recycled through a jet, in one engine.
 
-    spec: the :class:`JetSpec`; seed: int or sequence of ints (the
-    emission sequence, :class:`Emitter`); validate: run
-    :meth:`JetSpec.check_validity` first (the result is in ``validity``).
+    engine: "mujoco" or "pybullet"; spec: the :class:`JetSpec`; seed: int or
+    sequence of ints (the emission sequence, :class:`Emitter`); validate: run
+    :meth:`JetSpec.check_validity` first (the result is in ``validity``);
+    ``options``: the engine pool's own (MuJoCo: ``integrator``).
 
     :meth:`run` advances until a number of plate impacts is reached, calling
     ``sink(rows)`` with the per-impact rows of every engine step (plain
@@ -881,24 +879,17 @@ class JetPool(abc.ABC):
     (:class:`JetAggregates`); only those fixed-size aggregates and the pool's
     own arrays stay in memory. Records are popped from the adapter every step.
 
-    What an engine back end implements (the same file name, ``jet.py``, in
-    each engine folder):
-
-    1. ``_build()``: the scene with ``n`` = sum(pool_sizes) spheres (class
-       ``self.cls``, radius ``self.radius``) at ``self.park`` moving with
-       ``spec.park_velocity()``, the plate, and an adapter with pair i =
-       (particle i, plate) for i < n and, with particle_particle, the pairs
-       ``self.pp_pairs`` after them; the engine's own contact off for all.
-    2. ``_place(idx, pos, vel)``: set the centres [m] (k, 3) and velocities
-       [m/s] (k, 3) of particles idx, zero spin, identity orientation.
-    3. ``_centres(idx)``: centres [m] (k, 3). 4. ``_step()``: one engine step
-       through the adapter. 5. ``adapter`` (an engines.base.EngineAdapter),
-       ``time`` [s] and ``close()``.
+    The bodies are an :class:`engines.pool.SpherePool` (``bodies``: the
+    engine's recycled spheres, the park, the plate and the adapter; pair i
+    = (particle i, plate), then the particle-particle pairs); this class
+    adds the jet: emission from the nozzle, flight checks, the records'
+    conversion to impacts and the aggregates.
     """
 
-    engine: ClassVar[str] = ""
-
-    def __init__(self, spec: JetSpec, seed=0, *, validate: bool = True):
+    def __init__(self, engine: str, spec: JetSpec, seed=0, *, validate: bool = True, **options):
+        pool_class = sphere_pool_class(engine)
+        _check_spheres(pool_class, spec)
+        self.engine = engine
         self.spec = spec
         self.validity = spec.check_validity() if validate else None
         if spec.particle_particle:
@@ -906,60 +897,51 @@ class JetPool(abc.ABC):
 
             warnings.warn(PP_LIMIT, UserWarning, stacklevel=2)
         sizes = spec.pool_sizes()
-        self.cls = np.repeat(np.arange(len(sizes)), sizes)
-        self.n = int(self.cls.size)
-        self.radius = np.asarray(spec.particles.radii)[self.cls]
-        self.mass = np.array([spec.particles.mass(int(c)) for c in self.cls])
-        self.park = spec.park_positions(self.n)
-        self.laws = spec.plate_laws()
-        self.pp_pairs: list[tuple[int, int]] = (
-            [(i, j) for i in range(self.n) for j in range(i + 1, self.n)] if spec.particle_particle else [])
-        self.state = np.full(self.n, PARKED, np.int8)
-        self.emission_id = np.full(self.n, -1, np.int64)
-        self.t_emit = np.zeros(self.n)
-        self.p_emit = np.zeros((self.n, 3))
-        self.v_emit = np.zeros((self.n, 3))
-        self.deflected = np.zeros(self.n, bool)  # touched another particle since emission
-        self.t_pinned = np.zeros(self.n)
-        self._free = [deque(np.flatnonzero(self.cls == c).tolist()) for c in range(len(sizes))]
+        cls = np.repeat(np.arange(len(sizes)), sizes)
+        n = int(cls.size)
+        self.emission_id = np.full(n, -1, np.int64)
+        self.t_emit = np.zeros(n)
+        self.p_emit = np.zeros((n, 3))
+        self.v_emit = np.zeros((n, 3))
+        self.deflected = np.zeros(n, bool)  # touched another particle since emission
         self.emitter = Emitter(spec, seed)
         self._pending: _Emission | None = None
         self.counts = JetCounts()
         self.aggregates = JetAggregates(spec.bins, spec.plate.size, spec.plate.strength, len(sizes))
         self._g = np.array([0.0, 0.0, -spec.gravity])
-        self._v_park = spec.park_velocity()
-        self._v_park_rows = np.tile(self._v_park, (self.n, 1))  # (n, 3), indexed like park
-        self._half_mass = 0.5 * self.mass
+        v_park = spec.park_velocity()
+        self._v_park = v_park
         self._impacts = _ImpactBuffer(self.aggregates)
         self._timeout = spec.flight_timeout()
         self._z_away = spec.nozzle.position[2] + 0.5 * PARK_DISTANCE  # a particle above this flew off upward
-        self._repin_after = PARK_DRIFT / (float(np.linalg.norm(self._v_park)) + 1e-300)
+        repin_after = PARK_DRIFT / (float(np.linalg.norm(v_park)) + 1e-300)
         if spec.gravity > 0:
-            self._repin_after = min(self._repin_after, math.sqrt(2 * PARK_DRIFT / spec.gravity))
-        self._pin_min = 0.0  # at most the smallest t_pinned of the parked particles [s]
+            repin_after = min(repin_after, math.sqrt(2 * PARK_DRIFT / spec.gravity))
         self.cpu_s = 0.0
         self.wall_s = 0.0
-        self._build()
-
-    # -- engine hooks --------------------------------------------------------------
-    @abc.abstractmethod
-    def _build(self) -> None: ...
-
-    @abc.abstractmethod
-    def _place(self, idx: np.ndarray, pos: np.ndarray, vel: np.ndarray) -> None: ...
-
-    @abc.abstractmethod
-    def _centres(self, idx: np.ndarray) -> np.ndarray: ...
-
-    @abc.abstractmethod
-    def _step(self) -> None: ...
+        scene = SphereScene(
+            cls=cls, radius=np.asarray(spec.particles.radii)[cls],
+            mass=np.array([spec.particles.mass(int(c)) for c in cls]), laws=spec.plate_laws(),
+            park=spec.park_positions(n), park_velocity=v_park, repin_after=repin_after,
+            plate=PlateShape(spec.plate.kind, spec.plate.size, spec.plate.thickness), dt=spec.dt,
+            gravity=spec.gravity, tangential=spec.tangential,
+            pp_laws=spec.pp_laws() if spec.particle_particle else None)
+        self.bodies = pool_class(scene, **options)
+        b = self.bodies
+        self.n, self.cls, self.radius, self.mass, self.state = b.n, b.cls, b.radius, b.mass, b.state
+        self.pp_pairs = b.pp_pairs
+        self._half_mass = 0.5 * self.mass
 
     @property
-    @abc.abstractmethod
-    def time(self) -> float: ...
+    def adapter(self):
+        return self.bodies.adapter
 
-    @abc.abstractmethod
-    def close(self) -> None: ...
+    @property
+    def time(self) -> float:
+        return self.bodies.time
+
+    def close(self) -> None:
+        self.bodies.close()
 
     def __enter__(self):
         return self
@@ -971,7 +953,7 @@ class JetPool(abc.ABC):
     # -- the loop ------------------------------------------------------------------
     @property
     def in_flight(self) -> int:
-        return int(np.count_nonzero(self.state != PARKED))
+        return self.bodies.in_flight
 
     def run(self, impacts: int, sink: Callable[[list[dict]], None] | None = None, progress: bool | None = False,
             max_steps: int | None = None) -> JetCounts:
@@ -997,14 +979,15 @@ class JetPool(abc.ABC):
                        file=sys.stderr, disable=None if progress is None else False, dynamic_ncols=True, leave=False)
         c0, w0 = time.process_time(), time.perf_counter()
         steps = 0
+        bodies = self.bodies
         try:
             while True:
-                t = self.time
+                t = bodies.time
                 self._emit(t, impacts)
-                if self._pending is None and self.counts.impacts >= impacts and self.in_flight == 0:
+                if self._pending is None and self.counts.impacts >= impacts and bodies.in_flight == 0:
                     break
-                self._repin(t)
-                self._step()
+                bodies.repin(t)
+                bodies.step()
                 self.counts.steps += 1
                 steps += 1
                 n_plate, rows = self._collect(rows=sink is not None)
@@ -1013,7 +996,7 @@ class JetPool(abc.ABC):
                 if bar is not None and n_plate:
                     bar.update(n_plate)
                 self._check_flight()
-                self._park_done()
+                bodies.park_done()
                 if steps >= max_steps:
                     raise RuntimeError(f"the jet did not reach {impacts} impacts within {max_steps} steps "
                                        f"({self.counts.impacts} impacts, {self.in_flight} particles out)")
@@ -1043,7 +1026,7 @@ class JetPool(abc.ABC):
                 e = self._pending
                 if e.t > t + 1e-9 * dt:
                     return
-                free = self._free[e.cls]
+                free = self.bodies.free[e.cls]
                 if not free:
                     if not e.waited:
                         self.counts.pool_waits += 1
@@ -1079,10 +1062,9 @@ class JetPool(abc.ABC):
         a = np.array([(e.t, *e.p, *e.v, late) for _, e, late in launch])  # (k, 8)
         p0, v0, late = a[:, 1:4], a[:, 4:7], a[:, 7:8]
         if self.spec.gravity > 0:
-            self._place(idx, p0 + v0 * late + 0.5 * self._g * late * late, v0 + self._g * late)
+            self.bodies.launch(idx, p0 + v0 * late + 0.5 * self._g * late * late, v0 + self._g * late)
         else:
-            self._place(idx, p0 + v0 * late, v0)
-        self.state[idx] = FLIGHT
+            self.bodies.launch(idx, p0 + v0 * late, v0)
         self.emission_id[idx] = self.counts.emitted + np.arange(idx.size)
         self.t_emit[idx] = a[:, 0]
         self.p_emit[idx] = p0
@@ -1098,44 +1080,9 @@ class JetPool(abc.ABC):
         out = np.flatnonzero(self.state != PARKED)
         if out.size == 0:
             return True
-        d = np.linalg.norm(self._centres(out) - p, axis=1) - self.radius[out] - R
+        d = np.linalg.norm(self.bodies.centres(out) - p, axis=1) - self.radius[out] - R
         reach = PP_CLEARANCE_STEPS * float(np.linalg.norm(v - self._v_park)) * self.spec.dt
         return bool(np.all(d > reach))
-
-    def _repin(self, t: float) -> None:
-        """Put parked particles that drifted PARK_DRIFT back on their slot (velocity: the park velocity)."""
-        if t - self._pin_min < self._repin_after:  # no parked particle is due (_pin_min <= their t_pinned)
-            return
-        parked = self.state == PARKED
-        idx = np.flatnonzero(parked & (t - self.t_pinned >= self._repin_after))
-        if idx.size:
-            self._place(idx, self.park[idx], self._v_park_rows[idx])
-            self.t_pinned[idx] = t
-        self._pin_min = float(self.t_pinned[parked].min()) if np.any(parked) else math.inf
-
-    def _park(self, idx: np.ndarray, t: float) -> None:
-        self._place(idx, self.park[idx], self._v_park_rows[idx])
-        self.state[idx] = PARKED
-        self.t_pinned[idx] = t
-        self._pin_min = min(self._pin_min, t)
-        for i, c in zip(idx.tolist(), self.cls[idx].tolist()):
-            self._free[c].append(i)
-
-    def _required(self) -> np.ndarray:
-        """Mask (n,) of the particles in a contact or with a timing correction still in the engine."""
-        req = np.asarray(self.adapter.manager.required_pairs, dtype=int)
-        out = np.zeros(self.n, bool)
-        out[req[req < self.n]] = True
-        for p in req[req >= self.n].tolist():
-            out[list(self.pp_pairs[p - self.n])] = True
-        return out
-
-    def _park_done(self) -> None:
-        done = np.flatnonzero(self.state == DONE)
-        if done.size:
-            ok = done[~self._required()[done]]
-            if ok.size:
-                self._park(ok, self.time)
 
     def _check_flight(self) -> None:
         """Particles that timed out without an impact (every step) or left the
@@ -1144,11 +1091,11 @@ class JetPool(abc.ABC):
         fl = np.flatnonzero(self.state == FLIGHT)
         if fl.size == 0:
             return
-        t = self.time
+        t = self.bodies.time
         lost = (t - self.t_emit[fl]) > self._timeout
         box = self.spec.plate.kind == "box"
         if box or self.spec.particle_particle or self.counts.steps % POSITION_CHECK_STEPS == 0:
-            c = self._centres(fl)
+            c = self.bodies.centres(fl)
             lost |= c[:, 2] > self._z_away  # flew off upward
             if c[:, 2].min() < -self.radius[fl].max():
                 i = int(fl[np.argmin(c[:, 2])])
@@ -1160,10 +1107,10 @@ class JetPool(abc.ABC):
                 lost |= np.any(np.abs(c[:, :2]) > half - margin[:, None], axis=1)
         if np.any(lost):
             idx = fl[lost]
-            idx = idx[~self._required()[idx]]
+            idx = idx[~self.bodies.required()[idx]]
             if idx.size:
                 self.counts.lost += int(idx.size)
-                self._park(idx, t)
+                self.bodies.park_now(idx, t)
 
     # -- records -> rows -------------------------------------------------------------
     def _collect(self, rows: bool) -> tuple[int, list[dict]]:
@@ -1278,16 +1225,14 @@ class JetPool(abc.ABC):
 
 
 def make_pool(engine: str, spec: JetSpec, seed=0, **kw) -> JetPool:
-    """The pool driver of an engine ("mujoco" or "pybullet")."""
-    if engine == "mujoco":
-        from engines.mujoco.jet import MujocoJet
+    """The jet in an engine ("mujoco" or "pybullet"): :class:`JetPool`."""
+    return JetPool(engine, spec, seed, **kw)
 
-        return MujocoJet(spec, seed, **kw)
-    if engine == "pybullet":
-        from engines.pybullet.jet import PybulletJet
 
-        return PybulletJet(spec, seed, **kw)
-    raise ValueError(f"engine = {engine!r} is not one of {', '.join(ENGINES)}")
+def _check_spheres(pool_class, spec: JetSpec) -> None:
+    """The engine's own limits on the particles (MuJoCo: mjMINVAL), per size class."""
+    radii = spec.particles.radii
+    pool_class.check_spheres(radii, [spec.particles.mass(i) for i in range(len(radii))], label="particles.radius")
 
 
 class ChunkWriter:
@@ -1515,11 +1460,7 @@ def _config_message(path: str, msg: str) -> str:
 
 
 def _engine_check(engine: str, spec: JetSpec) -> None:
-    if engine == "mujoco":
-        from engines.mujoco.jet import check_spec
-    else:
-        from engines.pybullet.jet import check_spec
-    check_spec(spec)
+    _check_spheres(sphere_pool_class(engine), spec)
 
 
 def _cell_config(cfg: dict) -> dict:

@@ -1,24 +1,23 @@
-"""Abrasive jet in pybullet: the pool driver of
-:class:`experiments.scenarios.jet.JetPool` (same API as
-:mod:`engines.mujoco.jet`).
+"""The recycled pool of spheres (:class:`engines.pool.SpherePool`) in pybullet.
 
-The scene, in its own DIRECT client: ``n`` free spheres with the particles'
+The scene, in its own DIRECT client: ``n`` free spheres with the spheres'
 masses and solid-sphere inertias (no damping, no sleeping, the velocity
 clamp lifted, as in :mod:`engines.pybullet.scenes`) and the fixed plate (a
 plane, or a box whose top face is z = 0). pybullet's own collisions are off
-for every particle (collision filter group and mask 0), so every force
+for every sphere (collision filter group and mask 0), so every force
 between the bodies comes from :class:`engines.pybullet.PybulletAdapter`:
-pair i is (particle i, plate), and with particle-particle contacts the
-pool's ``pp_pairs`` follow. Particles are moved with
+pair i is (sphere i, plate), and with contacts between spheres the pool's
+``pp_pairs`` follow. Spheres are moved with
 ``resetBasePositionAndOrientation``/``resetBaseVelocity`` between steps.
+pybullet computes in double precision and takes small inertias as given:
+nothing pybullet-specific to refuse (:meth:`SpherePool.check_spheres`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from engines.base import PairSpec
-from experiments.scenarios.jet import JetPool, JetSpec
+from engines.pool import SphereScene, SpherePool
 
 from . import scenes
 from .adapter import PybulletAdapter
@@ -29,26 +28,23 @@ _IDENTITY = (0.0, 0.0, 0.0, 1.0)
 _ZERO3 = (0.0, 0.0, 0.0)
 
 
-def check_spec(spec: JetSpec) -> None:
-    """Nothing pybullet-specific to refuse (pybullet computes in double
-    precision and takes the particles' small inertias as given)."""
-
-
-class PybulletJet(JetPool):
-    """The jet in pybullet (see :class:`experiments.scenarios.jet.JetPool`)."""
+class PybulletSpherePool(SpherePool):
+    """The pool in pybullet (see :class:`engines.pool.SpherePool`)."""
 
     engine = "pybullet"
 
-    def __init__(self, spec: JetSpec, seed=0, *, validate: bool = True):
-        check_spec(spec)
+    def __init__(self, scene: SphereScene):
         self.client = None
-        super().__init__(spec, seed, validate=validate)
+        super().__init__(scene)
+
+    def _body(self, i: int):
+        return (int(self.uid[i]), -1)
 
     def _build(self) -> None:
-        spec = self.spec
-        c = scenes.new_client(spec.dt, spec.gravity if spec.gravity > 0 else None)
+        sc = self.scene
+        c = scenes.new_client(sc.dt, sc.gravity if sc.gravity > 0 else None)
         self.client = c
-        pl = spec.plate
+        pl = sc.plate
         if pl.kind == "plane":
             shape = pb.createCollisionShape(pb.GEOM_PLANE, planeNormal=[0, 0, 1], physicsClientId=c)
             plate = pb.createMultiBody(0.0, shape, basePosition=[0, 0, 0], physicsClientId=c)
@@ -56,7 +52,7 @@ class PybulletJet(JetPool):
             h = [0.5 * pl.size[0], 0.5 * pl.size[1], 0.5 * pl.thickness]
             shape = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=h, physicsClientId=c)
             plate = pb.createMultiBody(0.0, shape, basePosition=[0, 0, -0.5 * pl.thickness], physicsClientId=c)
-        v = spec.park_velocity().tolist()
+        v = self._v_park.tolist()
         shapes = {}
         self.uid = np.zeros(self.n, int)
         for i in range(self.n):
@@ -70,27 +66,21 @@ class PybulletJet(JetPool):
             pb.setCollisionFilterGroupMask(u, -1, 0, 0, physicsClientId=c)
             pb.resetBaseVelocity(u, v, [0.0, 0.0, 0.0], physicsClientId=c)
             self.uid[i] = u
-        pairs = [PairSpec((int(self.uid[i]), -1), (plate, -1), self.laws[int(self.cls[i])], spec.tangential)
-                 for i in range(self.n)]
-        if self.pp_pairs:
-            pp = spec.pp_laws()
-            pairs += [PairSpec((int(self.uid[i]), -1), (int(self.uid[j]), -1),
-                               pp[(int(self.cls[i]), int(self.cls[j]))], spec.tangential) for i, j in self.pp_pairs]
-        self.adapter = PybulletAdapter(c, pairs)
+        self.adapter = PybulletAdapter(c, self.pairs_of((plate, -1)))
 
-    def _place(self, idx, pos, vel) -> None:
+    def place(self, idx, pos, vel) -> None:
         c = self.client
         for u, p, v in zip(self.uid[np.asarray(idx, int)].tolist(), np.asarray(pos, float).tolist(),
                            np.asarray(vel, float).tolist()):
             pb.resetBasePositionAndOrientation(u, p, _IDENTITY, physicsClientId=c)
             pb.resetBaseVelocity(u, v, _ZERO3, physicsClientId=c)
 
-    def _centres(self, idx) -> np.ndarray:
+    def centres(self, idx) -> np.ndarray:
         c = self.client
         return np.array([pb.getBasePositionAndOrientation(u, physicsClientId=c)[0]
                          for u in self.uid[np.asarray(idx, int)].tolist()], float).reshape(-1, 3)
 
-    def _step(self) -> None:
+    def step(self) -> None:
         self.adapter.step(1)
 
     @property
