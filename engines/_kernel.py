@@ -1,7 +1,8 @@
 """Compiled (numba) core of :class:`engines._contacts.ContactManager`.
 
 The same algorithm as the manager's numpy path (module docstring of
-:mod:`engines._contacts`), written per contact row with scalar arithmetic
+:mod:`engines._contacts`; the numpy path, :mod:`engines._contacts.reference`,
+is the readable reference of this kernel: read it first), written per contact row with scalar arithmetic
 and compiled, for the five registry laws of :mod:`msf_contact.laws` used
 unchanged (their classes not subclassed with other force methods). Per
 engine step the manager calls

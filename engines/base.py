@@ -45,8 +45,7 @@ from __future__ import annotations
 import abc
 
 from ._contacts import ContactManager
-from .registry import ENGINES, get_engine  # noqa: F401  (re-exported)
-from .contract import (  # noqa: F401  (re-exported: the contract's data, imported from here by the adapters)
+from .contract import (  # the contract's data, re-exported: the adapters import it from here
     RADIUS_RTOL,
     STEPS_PER_CONTACT_MIN,
     ContactForces,
@@ -55,6 +54,10 @@ from .contract import (  # noqa: F401  (re-exported: the contract's data, import
     as_array,
     check_law_curvature,
 )
+from .registry import ENGINES, get_engine
+
+__all__ = ["EngineAdapter", "ENGINES", "get_engine", "RADIUS_RTOL", "STEPS_PER_CONTACT_MIN", "ContactForces",
+           "ContactKinematics", "PairSpec", "as_array", "check_law_curvature"]
 
 
 class EngineAdapter(abc.ABC):

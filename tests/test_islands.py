@@ -78,7 +78,7 @@ def _run(sc, bodies, n_steps, gravity=0.0):
 @pytest.mark.parametrize("dt", [1e-5, 1e-4, 1e-3, 2e-3])
 def test_cradle(engine, n, dt):
     """n touching steel balls (R = 10 mm, MSF), the first thrown at 1 m/s from
-    a gap of at least three steps (the candidates' reach, engines._islands)."""
+    a gap of at least three steps (the candidates' reach, engines._contacts.islands)."""
     _engine_available(engine)
     law = _steel_law()
     gap = max(3.0 * V0 * dt, 1e-4)

@@ -129,7 +129,7 @@ class Shadow:
             ad._fast.apply(ad.data, *want_fast, out=q_want)
         for a, b in zip((ad._last_v, ad._last_dv, ad._have_last), state):
             a[:] = b
-        ad._push = state[3]  # the candidates' extra reach before the step (engines._islands.push_reach)
+        ad._push = state[3]  # the candidates' extra reach before the step (engines._contacts.islands.push_reach)
         replay = _Replay(mgr, required, seen["out"])
         ad.manager = replay
         try:

@@ -98,7 +98,7 @@ import mujoco
 import numpy as np
 
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
-from engines._islands import TOUCH_TOL, push_reach
+from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box_face, sphere_plane, sphere_sphere
 from engines.base import (
     STEPS_PER_CONTACT_MIN,

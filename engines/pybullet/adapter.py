@@ -68,7 +68,7 @@ import pybullet as pb
 from engines import _geometry
 from engines._geometry import cross_rows
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance, effective_inverse_inertia_free
-from engines._islands import TOUCH_TOL, push_reach
+from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines.base import STEPS_PER_CONTACT_MIN, ContactKinematics, EngineAdapter, PairSpec, check_law_curvature
 
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times

@@ -45,9 +45,9 @@ import math
 
 import numpy as np
 
-from ._contacts import (
-    F_RATIO_FLOOR, MAX_SEGMENTS, NY, SETTLE_AFTER_DURATIONS, _P, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, _Batch,
-    _dot, _find_root, _Rows, _tangent_basis,
+from .reference import _Batch, _find_root
+from .state import (
+    _P, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, MAX_SEGMENTS, NY, _dot, _Rows, _tangent_basis,
 )
 
 
@@ -378,7 +378,7 @@ def _begin_rows(mgr, p, new, y, rows, t_abs):
         mgr._begin(g, mgr._groups[g], p, sel, y, rows, np.full(sel.size, t_abs))
         kl = mgr._kernel_law[g]
         if kl is not None:  # keep the compiled kernel's per-pair constants in step for later steps
-            from . import _kernel as K
+            from .. import _kernel as K
 
             store, pp = mgr._onset[g], p[sel]
             for c, key in enumerate(K.ONSET_KEYS[kl[0]]):

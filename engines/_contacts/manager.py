@@ -1,0 +1,403 @@
+"""The contact manager: per-contact state and one engine step of the
+candidate contacts (:meth:`ContactManager.step`), dispatched to the
+compiled path (:mod:`.compiled`, :mod:`engines._kernel`) or the numpy
+reference (:mod:`.reference`); onsets and records in :mod:`.records`.
+The algorithm: the package docstring (:mod:`engines._contacts`)."""
+
+from __future__ import annotations
+
+import math
+from typing import Any, Callable
+
+import numpy as np
+
+from msf_contact.laws import ForceLaw
+from msf_contact.record import ImpactRecord
+
+from .. import _kernel as K
+from ..contract import STEPS_PER_CONTACT_MIN, ContactForces, ContactKinematics, PairSpec, as_array
+from .compiled import CompiledPath, kernel_law
+from .records import Records
+from .reference import NumpyPath
+from .islands import islands, step_island
+from .state import NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES, _dot
+
+
+class ContactManager(CompiledPath, NumpyPath, Records):
+    """Per-contact state, sub-cycled integration and impact records for the
+    pairs of one adapter (see the module docstring).
+
+    pairs: the adapter's PairSpecs (one contact per pair: smooth convex
+    shapes touch at one point). dt: the engine step [s]. engine: name written
+    into the records. settle_rate: share of the engine-internal offset of x
+    removed per step in a resting contact (0 disables). settled_path: take the
+    settled path for long, slow contacts (False: sub-cycle every contact, the
+    plain implementation the settled path is tested against). compiled: run
+    the groups whose law the compiled kernel knows (:func:`kernel_law`) in
+    :mod:`engines._kernel` (False: the numpy path for every group, the
+    implementation the kernel is tested against).
+
+    Adapter hooks (optional, :meth:`set_body_probe`): a function
+    ``probe(pair_index) -> dict`` returning body-level quantities, read at
+    onset and when a finished contact's record is completed (at the next
+    :meth:`step`, or when ``records``/``pop_records`` are read, i.e. after
+    the engine applied the contact's last impulse). Key ``"omega1"``: body
+    1's angular velocity in world axes [rad/s] (3,), gives spin_in/spin_out
+    about n x t (t the incident tangential direction; rolling in the
+    direction of incidence is positive, as in the reference solver); other
+    keys are stored in ``record.inputs["body_in"]`` / ``["body_out"]``.
+    """
+
+    def __init__(self, pairs: list[PairSpec], dt: float, engine: str, *, settle_rate: float = SETTLE_RATE,
+                 timing_correction: bool = True, settled_path: bool = True, compiled: bool = True):
+        if not pairs:
+            raise ValueError("pairs is empty: give at least one PairSpec")
+        dt = float(dt)
+        if not math.isfinite(dt) or dt <= 0:
+            raise ValueError(f"dt = {dt!r} s must be finite and > 0")
+        #: keep each contact's step-averaged normal force per engine step and put it
+        #: in its record (inputs["curves"]); for isolated impacts, off for jets
+        self.history = False
+        self._hist: dict[int, list[tuple[float, float]]] = {}
+        if not 0.0 <= settle_rate <= 1.0:
+            raise ValueError(f"settle_rate = {settle_rate!r} must be in [0, 1]")
+        for i, p in enumerate(pairs):
+            if not isinstance(p.law, ForceLaw):
+                raise ValueError(f"pairs[{i}].law = {p.law!r} is not a msf_contact ForceLaw")
+            if p.tangential not in TANGENTIAL_MODES:
+                raise ValueError(f"pairs[{i}].tangential = {p.tangential!r} is not one of {TANGENTIAL_MODES}")
+        self.pairs = list(pairs)
+        self.dt = dt
+        self.engine = str(engine)
+        self.settle_rate = float(settle_rate)
+        self.timing_correction = bool(timing_correction)
+        self.settled_path = bool(settled_path)
+        P = len(pairs)
+        self._paper = np.array([p.tangential == "paper" for p in pairs])
+        # group pairs by law object (vectorised per law)
+        self._groups: dict[int, ForceLaw] = {}
+        self._group_of = np.empty(P, int)
+        self._pos = np.empty(P, int)  # position of a pair inside its group's onset arrays
+        sizes: dict[int, int] = {}
+        for i, p in enumerate(pairs):
+            g = id(p.law)
+            self._groups.setdefault(g, p.law)
+            self._group_of[i] = g
+            self._pos[i] = sizes.get(g, 0)
+            sizes[g] = self._pos[i] + 1
+        self._group_size = sizes
+        self._onset: dict[int, dict[str, np.ndarray]] = {g: {} for g in self._groups}
+        #: per law group: (code, constants) of the compiled kernel, or None (numpy path)
+        self.compiled = bool(compiled)
+        self._kernel_law = {g: (kernel_law(law) if self.compiled else None) for g, law in self._groups.items()}
+        # the kernel's laws: pair -> index into _kcodes/_kLC (-1: numpy path); all of them in one kernel call
+        kgs = [g for g in self._groups if self._kernel_law[g] is not None]
+        self._kcodes = np.array([self._kernel_law[g][0] for g in kgs], dtype=np.int64)
+        self._kLC = np.array([self._kernel_law[g][1] for g in kgs], dtype=float).reshape(len(kgs), K.NLC)
+        kidx = {g: j for j, g in enumerate(kgs)}
+        self._kg_of_pair = np.array([kidx.get(g, -1) for g in self._group_of], dtype=np.int64)
+        self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
+        self._coupling: tuple[np.ndarray, Callable] | None = None  # set_coupling
+        self._probe: Callable[[int], dict] | None = None
+        self._probe_batch: Callable[[], Callable[[int], dict]] | None = None
+        self._init_state(P)
+        self.records: list[ImpactRecord] = []
+        self._pending: list[list] = []  # [pair, record, spin axis, steps waited]
+        self.last_step_info: dict[str, Any] = {}
+
+    def _init_state(self, P):
+        z, z3 = np.zeros(P), np.zeros((P, 3))
+        # the per-pair record bookkeeping lives in one (NF, P) array (the compiled
+        # kernel updates it in place); the attributes below are its rows
+        self._fl = np.zeros((K.NF, P))
+        fl = self._fl
+        self.active = np.zeros(P, bool)  #: in contact (P,)
+        self.x = z.copy()  #: internal approach [m] (P,)
+        self.xdot = z.copy()  #: approach rate at the end of the last step [m/s] (P,)
+        self.s = z3.copy()  #: tangential displacement, world, in the contact plane [m] (P, 3)
+        self.phase = np.zeros(P, np.int8)  #: 0 compression (x' > 0), 1 restitution
+        self.turned = np.zeros(P, bool)  #: maximum compression passed at least once
+        self.t_onset = fl[K.F_TONSET]  #: onset time [s]
+        self.v_n_in = z.copy()  #: closing speed at onset [m/s]
+        self.v_n_used = z.copy()  #: onset speed given to law.onset (>= floor) [m/s]
+        self.m_eff = z.copy()  #: 1/(n W n) at onset [kg]
+        self.tau_est = z.copy()  #: estimated duration of the normal impact [s]
+        self.h = fl[K.F_H]  #: internal step [s]
+        self.n_in = z3.copy()  #: normal at onset (P, 3)
+        self.p_in = z3.copy()  #: contact point at the start of the onset step [m] (P, 3)
+        self._point = z3.copy()  #: contact points of the current step's rows [m] (P, 3)
+        self.u_in = z3.copy()  #: contact-point tangential velocity at onset [m/s] (P, 3)
+        self.vc_in = z3.copy()  #: centre-of-mass relative tangential velocity at onset [m/s] (P, 3)
+        self.vc = z3.copy()  #: centre-of-mass relative velocity at the end of the last step [m/s] (P, 3)
+        self.x_max = fl[K.F_XMAX]  #: maximum approach so far [m]
+        self.x_turn = fl[K.F_XTURN]  #: approach at the first maximum compression [m]
+        self.tau1 = fl[K.F_TAU1]  #: compression time [s]
+        self.F_max = fl[K.F_FMAX]  #: peak normal force [N]
+        self.x_at_F = fl[K.F_XATF]  #: approach at the peak force [m]
+        self.f_min = fl[K.F_FMIN]  #: min |F_t|/F_n [-]
+        self.f_min[:] = np.inf
+        self.f_max = fl[K.F_FMAXR]  #: max |F_t|/F_n [-]
+        self.W_el = z.copy()  #: work of the elastic normal force so far [J]
+        self.W_visc = z.copy()  #: work of the viscous normal force so far [J]
+        self.W_el_comp = fl[K.F_WELC]
+        self.W_visc_comp = fl[K.F_WVIC]
+        self.Q_t = z.copy()  #: tangential viscous work (80) [J]
+        self.W_t = z.copy()  #: work done against the tangential force [J]
+        self.outside = np.zeros(P, bool)
+        self.settled = np.zeros(P, bool)  #: took the settled path in the last step (P,)
+        #: solved in an island of several contacts in the last step (P,): the adapters keep such a
+        #: pair's force out of the held forces of a_ext (the island couples it explicitly)
+        self.in_island = np.zeros(P, bool)
+        self._held_force = np.zeros((P, 3))  #: the step-averaged forces held into the next step [N] (P, 3)
+        self.J = z3.copy()  #: timing-correction impulse applied in the last step, removed in the next [N s] (P, 3)
+        self.dv_corr = z3.copy()  #: W J: the engine's contact-point velocity offset it causes [m/s] (P, 3)
+        self.dvc_corr = z3.copy()  #: W_com J [m/s] (P, 3)
+        self.body_in: list[dict | None] = [None] * P
+        self._oc = np.full((P, K.NOC), np.nan)  #: onset constants per pair for the compiled kernel
+        # the kernel's scratch (it allocates nothing itself)
+        self._seen = np.zeros(P, bool)
+        self._scr_settled = (np.empty(6), np.empty((4, 3, 3)), np.empty((8, 3)), np.empty((3, 4)))
+        self._scr_rk4 = (np.empty(6), np.empty((5, NY)), np.empty((4, NY)))
+        self._params: dict[int, dict] = {}  # law.parameters() per group, copied into each record
+
+    @property
+    def active_count(self) -> int:
+        return int(np.count_nonzero(self.active))
+
+    @property
+    def active_pairs(self) -> np.ndarray:
+        """Pair indices in contact."""
+        return np.flatnonzero(self.active)
+
+    @property
+    def required_pairs(self) -> np.ndarray:
+        """Pair indices an adapter must list as candidates in the next step,
+        whatever their gap: those in contact and those with a timing
+        correction to remove."""
+        return K.required(self.active, self.J)
+
+    def set_body_probe(self, probe: Callable[[int], dict] | None,
+                       batch: Callable[[], Callable[[int], dict]] | None = None) -> None:
+        """Install the adapter's body-level probe (see the class docstring).
+        batch: optional; returns a probe valid for one batch of calls made
+        between engine steps (records completed when they are read), so the
+        adapter brings the engine's derived quantities up to date once per
+        batch instead of once per record."""
+        if probe is not None and not callable(probe):
+            raise ValueError(f"probe = {probe!r} must be callable or None")
+        if batch is not None and not callable(batch):
+            raise ValueError(f"batch = {batch!r} must be callable or None")
+        self._probe = probe
+        self._probe_batch = batch
+
+    def state(self, pair_index: int) -> dict | None:
+        """Current state of the pair's contact, or None when not in contact."""
+        p = int(pair_index)
+        if not 0 <= p < len(self.pairs):
+            raise ValueError(f"pair_index = {pair_index!r} is outside [0, {len(self.pairs) - 1}]")
+        if not self.active[p]:
+            return None
+        g = self._group_of[p]
+        onset = {k: float(v[self._pos[p]]) for k, v in self._onset[g].items()}
+        return {
+            "x": float(self.x[p]), "xdot": float(self.xdot[p]), "s": self.s[p].copy(),
+            "phase": "restitution" if self.phase[p] else "compression",
+            "x_max": float(self.x_max[p]), "F_max": float(self.F_max[p]), "t_onset": float(self.t_onset[p]),
+            "v_n_in": float(self.v_n_in[p]), "v_n_used": float(self.v_n_used[p]),
+            "v_t_in": float(np.linalg.norm(self.u_in[p])), "m_eff": float(self.m_eff[p]),
+            "omega_x": onset.get("omega_x"), "omega_y": onset.get("omega_y"), "onset": onset,
+            "tau_est": float(self.tau_est[p]), "h": float(self.h[p]),
+            "W_el": float(self.W_el[p]), "W_visc": float(self.W_visc[p]), "Q_t": float(self.Q_t[p]),
+        }
+
+    def step(self, kin: ContactKinematics) -> ContactForces:
+        """Integrate the candidate contacts over one engine step; return the
+        step-averaged forces on body 1 at the contact points."""
+        self._finish_pending(at_step_start=True)
+        pair = np.asarray(kin.pair, dtype=int).reshape(-1)
+        k = pair.shape[0]
+        x = as_array(kin.x, ()).reshape(-1)
+        n = as_array(kin.normal, (3,))
+        point = as_array(kin.point, (3,))
+        v = as_array(kin.v_rel, (3,))
+        vc = as_array(kin.v_com_rel, (3,))
+        W = as_array(kin.W, (3, 3))
+        Wc = as_array(kin.W_com, (3, 3))
+        a = as_array(kin.a_ext, (3,))
+        for name, arr in (("x", x), ("normal", n), ("point", point), ("v_rel", v), ("v_com_rel", vc),
+                          ("W", W), ("W_com", Wc), ("a_ext", a)):
+            if arr.shape[0] != k:
+                raise ValueError(f"kinematics.{name} has {arr.shape[0]} rows; expected {k} (len(pair))")
+        n_unit = np.empty((k, 3))  # the normals renormalised (they are unit to 1e-6)
+        code, row = K.check(pair, len(self.pairs), x, n, point, v, vc, W, Wc, a, self.active, self.J, self._seen,
+                            n_unit, self._point)
+        if code:
+            self._invalid(code, row, pair, x, n, point, v, vc, W, Wc, a)
+        n = n_unit
+        t0 = float(kin.t)
+        info = {"rows": k, "substeps": 0, "segments": 0, "onsets": 0, "ends": 0, "settled": 0,
+                "settled_iterations": 0, "island_rows": 0}
+        self.in_island[:] = False
+        multi = self._island_rows(pair, t0, n, v, W) if self._coupling is not None and k > 1 else None
+        if multi is not None:
+            out = self._step_with_islands(multi, pair, x, n, point, v, vc, W, Wc, a, t0, info)
+        else:
+            out = self._step_rows(pair, x, n, point, v, vc, W, Wc, a, t0, info)
+        if self._coupling is not None:  # the forces the adapters hold into the next step's a_ext
+            self._held_force[:] = 0.0
+            held = self.held(pair, t0 + self.dt)
+            self._held_force[pair[held]] = out.force[held]
+        return out
+
+    def held(self, pair, t_next: float) -> np.ndarray:
+        """Which of the pairs ``pair`` (k,) hold their force into the next step
+        (starting at ``t_next``), for the adapters' a_ext: in contact at the end
+        of this step, not in an island (whose forces are coupled explicitly),
+        and either resting (older than SETTLE_AFTER_DURATIONS estimated
+        durations, or on the settled path) or resolved by the engine step (an
+        estimated duration of at least STEPS_PER_CONTACT_MIN steps). Their
+        step-averaged force is the prediction of their force over the next
+        step, so it stays in the other pairs' a_ext; an impact shorter than
+        that (the whole contact, or most of it, inside a step) has already
+        given its impulse and is left out."""
+        act = self.active[pair] & ~self.in_island[pair]
+        resting = (t_next - self.t_onset[pair]) > SETTLE_AFTER_DURATIONS * self.tau_est[pair]
+        resolved = self.tau_est[pair] >= STEPS_PER_CONTACT_MIN * self.dt
+        return act & (self.settled[pair] | resting | resolved)
+
+    def _step_rows(self, pair, x, n, point, v, vc, W, Wc, a, t0, info) -> ContactForces:
+        """Each row on its own (the compiled kernel or the numpy path per law)."""
+        k = pair.shape[0]
+        if self._all_kernel:
+            force = self._step_compiled(pair, x, n, v, vc, W, Wc, a, t0, info)
+            force /= self.dt
+        else:
+            force = np.zeros((k, 3))
+            krows = np.flatnonzero(self._kg_of_pair[pair] >= 0)
+            if krows.size:
+                P = self._step_compiled(pair[krows], x[krows], n[krows], v[krows], vc[krows], W[krows], Wc[krows],
+                                        a[krows], t0, info)
+                force[krows] = P / self.dt
+            for g, law in self._groups.items():
+                if self._kernel_law[g] is not None:
+                    continue
+                rows = np.flatnonzero(self._group_of[pair] == g)
+                if rows.size == 0:
+                    continue
+                P = self._step_group(g, law, pair[rows], x[rows], n[rows], v[rows], vc[rows], W[rows], Wc[rows],
+                                     a[rows], t0, info)
+                force[rows] = P / self.dt
+        self.last_step_info = info
+        return ContactForces(force=force, point=point.copy(), pair=pair.copy())
+
+    # ------------------------------------------------------------ islands --
+    def set_coupling(self, keys, blocks: Callable | None) -> None:
+        """Solve contacts that share a moving body together (engines._contacts.islands).
+
+        keys: (P, 2) int, a key per body of each pair (-1: fixed; the links of
+        one articulated tree share their root's key). blocks(pp, pq) -> (W
+        (b, 3, 3), Wc (b, 3, 3)): the cross inverse inertias J_p M^-1 J_q^T and
+        J_c,p M^-1 J_q^T [1/kg] between the current step's contact points of
+        the pairs pp (b,) and pq (b,) (p != q), called from inside ``step``.
+        None switches it off (each contact on its own, the others through a_ext)."""
+        if blocks is None:
+            self._coupling = None
+            return
+        keys = np.asarray(keys, dtype=np.int64)
+        if keys.shape != (len(self.pairs), 2):
+            raise ValueError(f"keys has shape {keys.shape}; expected ({len(self.pairs)}, 2)")
+        if not callable(blocks):
+            raise ValueError(f"blocks = {blocks!r} must be callable or None")
+        self._coupling = (keys, blocks)
+
+    def _island_rows(self, pair, t0, n, v, W):
+        """Island label per row for the rows in islands of two or more (others -1), or None."""
+        keys = self._coupling[0][pair]
+        kk = keys[keys >= 0]
+        if kk.size < 2 or not np.any(np.bincount(kk) > 1):
+            return None
+        act = self.active[pair]
+        age_ok = self._resting(pair, t0, n, v, W)
+        lab = islands(pair, act, age_ok, keys)
+        counts = np.bincount(lab, minlength=pair.size)
+        multi = np.where(counts[lab] > 1, lab, -1)
+        self._rest_rows = age_ok
+        return multi if np.any(multi >= 0) else None
+
+    def _resting(self, pair, t0, n, v, W):
+        """(k,) rows in a resting contact: older than SETTLE_AFTER_DURATIONS
+        estimated durations and approaching slower than SETTLED_SPEED_RATIO v_x
+        (the settled path's criterion); a resting contact that is hit is not."""
+        act = self.active[pair]
+        rest = act & ((t0 - self.t_onset[pair]) > SETTLE_AFTER_DURATIONS * self.tau_est[pair])
+        if np.any(rest):
+            r = np.flatnonzero(rest)
+            vn = np.abs(_dot(v[r] - self.dv_corr[pair[r]], n[r]))
+            xr = np.maximum(self.x[pair[r]], 0.0)
+            nWn = np.einsum("ki,kij,kj->k", n[r], W[r], n[r])
+            F = np.zeros(r.size)
+            for g in np.unique(self._group_of[pair[r]]):
+                sel = self._group_of[pair[r]] == g
+                o = {key: arr[self._pos[pair[r][sel]]] for key, arr in self._onset[g].items()}
+                F[sel] = self._groups[g].contact_normal_force(xr[sel], np.zeros(int(sel.sum())), o)
+            vx = np.sqrt(np.maximum(F, 0.0) * xr * nWn)
+            rest[r] = vn <= SETTLED_SPEED_RATIO * vx
+        return rest
+
+    def _step_with_islands(self, multi, pair, x, n, point, v, vc, W, Wc, a, t0, info) -> ContactForces:
+        k = pair.shape[0]
+        force = np.zeros((k, 3))
+        alone = np.flatnonzero(multi < 0)
+        if alone.size:
+            out = self._step_rows(pair[alone], x[alone], n[alone], point[alone], v[alone], vc[alone], W[alone],
+                                  Wc[alone], a[alone], t0, info)
+            force[alone] = out.force
+        keys_all, blocks = self._coupling
+        for lab in np.unique(multi[multi >= 0]):
+            r = np.flatnonzero(multi == lab)
+            pp = pair[r]
+            keys = keys_all[pp]
+            # the row pairs of the island that share a moving body
+            cp, cq = [], []
+            for i in range(r.size):
+                for j in range(r.size):
+                    if i != j and np.any((keys[i][:, None] == keys[j][None, :]) & (keys[i][:, None] >= 0)):
+                        cp.append(i)
+                        cq.append(j)
+            cp, cq = np.array(cp, dtype=np.int64), np.array(cq, dtype=np.int64)
+            Wpq, Wcpq = blocks(pp[cp], pp[cq])
+            Wpq = as_array(Wpq, (3, 3))
+            Wcpq = as_array(Wcpq, (3, 3))
+            # a neighbour's force held last step is in this row's a_ext as its prediction; the island
+            # now couples that neighbour explicitly, so take the prediction out (no double count)
+            a_r = a[r].copy()
+            Fh = self._held_force[pp[cq]]
+            if np.any(Fh):
+                np.add.at(a_r, cp, -np.einsum("bij,bj->bi", Wpq, Fh))
+            info["island_rows"] += int(r.size)
+            self.in_island[pp] = True
+            P = step_island(self, pp, x[r], n[r], v[r], vc[r], W[r], Wc[r], a_r, t0, info, cp, cq, Wpq, Wcpq,
+                            self._rest_rows[r])
+            force[r] = P / self.dt
+        self.last_step_info = info
+        return ContactForces(force=force, point=point.copy(), pair=pair.copy())
+
+    def _invalid(self, code, row, pair, x, n, point, v, vc, W, Wc, a):
+        """Raise the ValueError for what :func:`engines._kernel.check` found."""
+        if code == 1:
+            raise ValueError(f"kinematics.pair = {pair!r} has indices outside [0, {len(self.pairs) - 1}]")
+        if code == 2:
+            raise ValueError(f"kinematics.pair = {pair!r} lists a pair twice (one contact per pair)")
+        if code == 3:
+            for name, arr in (("x", x), ("normal", n), ("point", point), ("v_rel", v), ("v_com_rel", vc),
+                              ("W", W), ("W_com", Wc), ("a_ext", a)):
+                if not np.all(np.isfinite(arr[row])):
+                    raise ValueError(f"kinematics.{name} is not finite: {arr!r}")
+        if code == 4:
+            raise ValueError(f"kinematics.normal must be unit vectors, norms {np.linalg.norm(n, axis=1)!r}")
+        if code == 5:
+            missing = np.flatnonzero((self.active | np.any(self.J != 0.0, axis=1)) & ~np.isin(
+                np.arange(len(self.pairs)), pair))
+            raise ValueError(f"kinematics.pair = {pair!r} lacks pairs {missing!r} that are in contact or have a "
+                             "timing correction to remove: list manager.required_pairs every step")
+        raise RuntimeError(f"engines._kernel.check returned an unknown code {code!r}")

@@ -1,0 +1,271 @@
+"""Onsets and impact records of :class:`engines._contacts.ContactManager`:
+the onset constants and bookkeeping of a new contact (:meth:`Records._begin`,
+both paths), the :class:`msf_contact.ImpactRecord` of a finished one
+(:meth:`Records._end`, in the reference solver's format) and its
+completion once the engine has applied the contact's last impulse
+(body probe, ``spin_out``)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from msf_contact import closed_forms as cf
+from msf_contact._validate import small_strain_note
+from msf_contact.geometry import area
+from msf_contact.record import ImpactRecord
+
+from .. import _kernel as K
+from .state import (
+    _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, PENDING_MAX_STEPS, SUBSTEPS_PER_CONTACT, SUBSTEPS_PER_TANGENTIAL, _dot,
+    _duration_estimate, _name, _pc, _plain, _Rows, onset_speed_floor,
+)
+
+
+class Records:
+    """Onsets and records (mixed into :class:`engines._contacts.ContactManager`)."""
+
+    def pop_records(self) -> list[ImpactRecord]:
+        """Completed impacts since the last call, and forget them (see ``pending_count``)."""
+        self._finish_pending()
+        out, self.records = self.records, []
+        return out
+
+    @property
+    def pending_count(self) -> int:
+        """Finished contacts whose record waits for the body-level probe: with a
+        probe installed, a record is completed at the start of the second step
+        after the contact ended, once the timing correction has left the
+        engine's velocities (``spin_out`` is then the physical spin)."""
+        return len(self._pending)
+
+    def _begin(self, g, law, p, new, y, batch, t_abs):
+        """Onset of the contacts at rows new: law.onset for all of them at once."""
+        pp = p[new]
+        n = batch.n[new]
+        W = batch.W[new]
+        nWn = np.einsum("ki,kij,kj->k", n, W, n)
+        if np.any(nWn <= 0):
+            raise ValueError(f"n.W.n = {nWn!r} 1/kg must be > 0 (both bodies fixed, or W is wrong)")
+        m = 1.0 / nWn
+        v = y[new, _V]
+        vn = np.maximum(-_dot(v, n), 0.0)
+        a_n = -_dot(batch.a[new], n)
+        v_used = np.maximum(vn, onset_speed_floor(law, m, a_n))
+        o = law.onset(v_used, m)
+        # store per pair (group arrays created on first use)
+        store = self._onset[g]
+        size = self._group_size[g]
+        o_new = {}
+        for key, val in o.items():
+            val = np.broadcast_to(np.asarray(val, dtype=float), (pp.size,))
+            o_new[key] = val
+            if key not in store:
+                store[key] = np.full(size, np.nan)
+            store[key][self._pos[pp]] = val
+        if not isinstance(batch, _Rows):  # the numpy path's batch carries its rows' onset constants
+            batch.onset = {key: arr[self._pos[p]] for key, arr in store.items()}
+        # duration estimate -> internal step
+        tau_n = _duration_estimate(law, o, m, v_used)
+        x_est = cf.hertz_x_max(m, v_used, law.moduli.E, law.geom.R)
+        k_t, _ = law.tangential_stiffness(x_est, o_new)
+        T = np.eye(3) - n[:, :, None] * n[:, None, :]
+        w_t = np.linalg.eigvalsh(T @ W @ T)[:, -1]
+        with np.errstate(divide="ignore"):
+            tau_t = np.where(k_t.max(axis=1) * w_t > 0, math.pi / np.sqrt(k_t.max(axis=1) * w_t), np.inf)
+        self.tau_est[pp] = tau_n
+        self.h[pp] = np.minimum(tau_n / SUBSTEPS_PER_CONTACT, tau_t / SUBSTEPS_PER_TANGENTIAL)
+        # bookkeeping
+        self.t_onset[pp] = t_abs
+        self.v_n_in[pp] = vn
+        self.v_n_used[pp] = v_used
+        self.m_eff[pp] = m
+        self.n_in[pp] = n
+        self.p_in[pp] = self._point[pp]
+        self.u_in[pp] = v - _dot(v, n)[:, None] * n
+        vc = y[new, _VC]
+        self.vc_in[pp] = vc - _dot(vc, n)[:, None] * n
+        self.x_max[pp] = np.maximum(y[new, _X], 0.0)
+        self.x_turn[pp] = 0.0
+        self.turned[pp] = False
+        self.tau1[pp] = 0.0
+        self.F_max[pp] = 0.0
+        self.x_at_F[pp] = 0.0
+        self.f_min[pp] = np.inf
+        self.f_max[pp] = 0.0
+        self.W_el_comp[pp] = 0.0
+        self.W_visc_comp[pp] = 0.0
+        self.outside[pp] = False
+        y[new, _S] = 0.0
+        y[new, _WEL] = y[new, _WVI] = y[new, _Q] = y[new, _WT] = 0.0
+        if self._probe is not None:
+            for q in pp:
+                self.body_in[int(q)] = dict(self._probe(int(q)) or {})
+        else:
+            for q in pp:
+                self.body_in[int(q)] = None
+
+    def _end(self, p, ye, t_end, ended_by, n):
+        """Close the contact of pair p with the state ye (NY,) at time t_end
+        (scalar arithmetic on Python floats: this runs once per impact)."""
+        law = self.pairs[p].law
+        g = self._group_of[p]
+        onset = {k: float(v[self._pos[p]]) for k, v in self._onset[g].items()}
+        yl, nl = ye.tolist(), n.tolist()
+        v = yl[1:4]
+        xd_end = -(v[0] * nl[0] + v[1] * nl[1] + v[2] * nl[2])
+        v_out = max(-xd_end, 0.0)
+        vin = self.v_n_in[p] if self.v_n_in[p] > 0 else self.v_n_used[p]
+        tau = t_end - self.t_onset[p]
+        tau1 = self.tau1[p] if self.turned[p] else tau
+        u_in = self.u_in[p].tolist()
+        u_out = [v[i] + xd_end * nl[i] for i in range(3)]
+        lu = math.sqrt(u_in[0] ** 2 + u_in[1] ** 2 + u_in[2] ** 2)
+        vct = self.vc_in[p].tolist()
+        lv = math.sqrt(vct[0] ** 2 + vct[1] ** 2 + vct[2] ** 2)
+        scale = max(vin, lu, lv)
+        cor_t_contact = (-(u_out[0] * u_in[0] + u_out[1] * u_in[1] + u_out[2] * u_in[2]) / lu**2
+                         if lu > 1e-12 * scale else None)
+        vc_end = yl[7:10]
+        cor_t = ((vc_end[0] * vct[0] + vc_end[1] * vct[1] + vc_end[2] * vct[2]) / lv**2
+                 if lv > 1e-12 * scale else None)
+        x_m = float(self.x_turn[p]) if self.turned[p] else float(self.x_max[p])
+        outside = []
+        x_lim = law.x_limit
+        if self.outside[p] or (x_lim is not None and self.x_max[p] >= x_lim):
+            outside.append(f"x_max = {self.x_max[p]:.6g} m reached 2R: k_p = sqrt(2 - x/R) of (15) was clamped")
+        strain = small_strain_note(x_m, law.geom.R)
+        if strain:
+            outside.append(strain)
+        kl = self._kernel_law[g]
+        if kl is not None:
+            Pc, Pc_F = K.peak_pressures(kl[0], kl[1], self._oc, p, x_m, float(self.x_at_F[p]), float(self.F_max[p]),
+                                        self._scr_rk4[0])
+        else:
+            Pc = _pc(law, x_m, {k: np.array([v]) for k, v in onset.items()})
+            Pc_F = (1.5 * self.F_max[p] / float(area(self.x_at_F[p], law.geom, law.kp_mode))
+                    if self.x_at_F[p] > 0 else 0.0)
+        W_el, W_vi = yl[_WEL], yl[_WVI]
+        params = self._params.get(g)
+        if params is None:
+            params = self._params[g] = law.parameters()
+        rec = ImpactRecord(
+            cor_n=v_out / vin,
+            cor_t=cor_t,
+            cor_t_contact=cor_t_contact,
+            cor_tau_ratio=tau1 / (tau - tau1) if tau > tau1 else 0.0,
+            tau=float(tau), tau1=float(tau1), tau2=float(tau - tau1),
+            x_max=x_m, F_max=float(self.F_max[p]), Pc_max=Pc, Pc_at_Fmax=float(Pc_F),
+            W_el_comp=float(self.W_el_comp[p]), W_visc_comp=float(self.W_visc_comp[p]),
+            W_el_rest=-(W_el - float(self.W_el_comp[p])), W_visc_rest=W_vi - float(self.W_visc_comp[p]),
+            W_diss_n=W_el + W_vi, W_diss_t=yl[_WT], Q_t=yl[_Q],
+            spin_in=None, spin_out=None,
+            f_min=None if not math.isfinite(self.f_min[p]) else float(self.f_min[p]),
+            f_max=float(self.f_max[p]) if math.isfinite(self.f_min[p]) else None,
+            omega_x=onset.get("omega_x"), omega_y=onset.get("omega_y"),
+            ended_by=ended_by, law=law.name, engine=self.engine, dt=self.dt,
+            parameters=dict(params),
+            inputs={
+                "pair": p, "body1": _name(self.pairs[p].body1), "body2": _name(self.pairs[p].body2),
+                "t_onset": float(self.t_onset[p]), "t_end": float(t_end),
+                "v_n_in": float(self.v_n_in[p]), "v_n_onset_used": float(self.v_n_used[p]),
+                "v_t_in": lu, "mass_effective": float(self.m_eff[p]), "tangential": self.pairs[p].tangential,
+                "internal_step": float(self.h[p]), "tau_estimate": float(self.tau_est[p]),
+                "x_max_overall": float(self.x_max[p]), "onset": onset,
+                "point": self.p_in[p].tolist(), "normal": self.n_in[p].tolist(),
+            },
+            outside_validity=outside,
+        )
+        self.active[p] = False
+        # spin axis n x t of the incidence (rolling in the direction of incidence positive)
+        t_dir = vct if lv > 0 else u_in
+        lt = lv if lv > 0 else lu
+        if lt > 0:
+            a0 = self.n_in[p].tolist()
+            t = [c / lt for c in t_dir]
+            axis = np.array([a0[1] * t[2] - a0[2] * t[1], a0[2] * t[0] - a0[0] * t[2], a0[0] * t[1] - a0[1] * t[0]])
+        else:
+            axis = np.zeros(3)
+        bi = self.body_in[p]
+        if bi is not None:
+            rec.inputs["body_in"] = {k: _plain(v) for k, v in bi.items()}
+            if "omega1" in bi and lt > 0:
+                rec.spin_in = float(np.asarray(bi["omega1"], dtype=float) @ axis)
+        if self._probe is None:
+            self._publish(p, rec)
+        else:  # completed once the engine has applied the contact's last impulse (see pending_count)
+            self._pending.append([p, rec, axis if lt > 0 else None, 0])
+
+    def interrupt(self, pairs, why: str) -> int:
+        """The engine's state jumped for the bodies of ``pairs`` (pair
+        indices (k,); a reset, or positions or velocities set by the user):
+        forget every contact of those pairs that was in progress at the start
+        of the last step, those still active and those that ended in it
+        (their records are dropped: half a contact is no impact), with their
+        timing corrections; complete the records of their contacts that ended
+        earlier without the body-level output (``why`` says why). Returns the
+        number of contacts dropped."""
+        sel = np.zeros(len(self.pairs), bool)
+        sel[np.asarray(pairs, dtype=int)] = True
+        dropped = int(np.count_nonzero(self.active & sel))
+        keep = []
+        for entry in self._pending:
+            p, rec, _axis, waited = entry
+            if not sel[p]:
+                keep.append(entry)
+            elif waited == 0:  # ended in the last step
+                dropped += 1
+            else:
+                rec.inputs["body_out"] = None
+                rec.inputs["body_out_unavailable"] = why
+                self._publish(p, rec)
+        self._pending = keep
+        for p in np.flatnonzero(sel):
+            self._hist.pop(int(p), None)
+        self.active[sel] = False
+        self.settled[sel] = False
+        self.J[sel] = 0.0
+        self.dv_corr[sel] = 0.0
+        self.dvc_corr[sel] = 0.0
+        return dropped
+
+    def _publish(self, p: int, rec: ImpactRecord) -> None:
+        """Move a completed record to ``records`` (with its force history when kept)."""
+        hist = self._hist.pop(p, None)
+        if self.history and hist:
+            t_on = float(rec.inputs.get("t_onset", 0.0))
+            rec.inputs["curves"] = {"t": [t - t_on for t, _ in hist], "F_n": [f for _, f in hist],
+                                    "kind": "step-averaged", "dt": self.dt}
+        self.records.append(rec)
+
+    def _finish_pending(self, at_step_start: bool = False):
+        """Complete the records whose pair has no timing correction in the engine
+        any more (its velocities are the physical ones): read the probe, move
+        them to ``records``. At a step start a record that waited
+        PENDING_MAX_STEPS steps (a new contact of the same pair keeps a
+        correction going) is completed without the body-level output."""
+        keep = []
+        probe = self._probe if at_step_start or self._probe_batch is None else None
+        for entry in self._pending:
+            if at_step_start:
+                entry[3] += 1
+            p, rec, axis, waited = entry
+            clean = waited >= 1 and not np.any(self.J[p])
+            if clean:
+                if self._probe is not None:
+                    if probe is None:  # the first record of a batch between steps
+                        probe = self._probe_batch()
+                    bo = dict(probe(p) or {})
+                    rec.inputs["body_out"] = {k: _plain(v) for k, v in bo.items()}
+                    if "omega1" in bo and axis is not None:
+                        rec.spin_out = float(np.asarray(bo["omega1"], dtype=float) @ axis)
+                self._publish(p, rec)
+            elif waited > PENDING_MAX_STEPS:
+                rec.inputs["body_out"] = None
+                rec.inputs["body_out_unavailable"] = (
+                    "the pair was in contact again before its bodies' post-impact state could be read")
+                self._publish(p, rec)
+            else:
+                keep.append(entry)
+        self._pending = keep

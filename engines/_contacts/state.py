@@ -1,0 +1,205 @@
+"""Constants, the layout of the internal state vector and the helpers both
+integration paths of :class:`engines._contacts.ContactManager` share (the
+numpy reference, :mod:`.reference`, and the compiled kernel,
+:mod:`engines._kernel`, take their tuning constants from here)."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from msf_contact import closed_forms as cf
+from msf_contact.geometry import area
+from msf_contact.laws import ForceLaw, MSFLaw
+
+from ..contract import STEPS_PER_CONTACT_MIN
+
+TANGENTIAL_MODES = ("contact-point", "paper")
+
+#: Internal RK4 steps per contact duration: 4 x 50. RK4 converges as h^4
+#: (h^1.5 over the first substep, where F ~ t^(1/2) for MSF): at 200 steps
+#: per duration the COR error is ~1e-6, far below the 0.02% acceptance.
+SUBSTEPS_PER_CONTACT = 4 * STEPS_PER_CONTACT_MIN
+#: Internal RK4 steps per half period pi/sqrt(k_t w_t) of the tangential
+#: oscillation (stiffness k_t at the Hertz x_max, w_t the largest tangential
+#: eigenvalue of W): RK4 error ~ (pi/100)^4 ~ 1e-6 per period.
+SUBSTEPS_PER_TANGENTIAL = 100
+#: Smallest onset speed used for the onset constants [m/s], with no external
+#: acceleration along the normal (with one, the floor is sqrt(2 a_n x_static)).
+V_ONSET_MIN = 1e-6
+#: A contact older than this many estimated durations is resting/rolling
+#: (an impact lasts one); only then is its x relaxed toward the engine's.
+SETTLE_AFTER_DURATIONS = 3.0
+#: A contact older than SETTLE_AFTER_DURATIONS durations takes the settled path
+#: (one implicit force evaluation per engine step instead of sub-cycling) while
+#: its approach rate stays below this share of v_x = sqrt(F_el(x) x / m), the
+#: speed whose kinetic energy m v^2/2 equals the elastic energy F x/2 of a
+#: linear spring at the same force and overlap: at 0.1 the normal motion
+#: carries <= 1% of the energy stored in the contact, so the contact is a
+#: small perturbation about its equilibrium that the implicit step resolves
+#: (a ball resting under gravity: v_x = sqrt(g x_s), 3 mm/s for rubber with
+#: x_s = 0.1 mm). A hit (a larger rate at the step start, or in the implicit
+#: solution) sends the contact back to sub-cycling.
+SETTLED_SPEED_RATIO = 0.1
+#: Newton iterations of the settled path's implicit step (the first one is the
+#: law linearised at the current state). A resting contact converges in 2-3;
+#: a row that has not converged is sub-cycled instead.
+SETTLED_NEWTON_MAX = 8
+#: Convergence of the settled path: the velocity residual of the implicit
+#: step below this share of v_x (the force balance is then exact to
+#: m SETTLED_VTOL v_x / dt, ~1e-9 m g for a resting ball).
+SETTLED_VTOL = 1e-8
+#: Relative step of the forward differences dF_n/dx (x) and dF_n/dx' (v_x) in
+#: the settled path's Jacobian. Only Newton's rate depends on it; the
+#: converged force is the law's own at the end state.
+SETTLED_FD_REL = 1e-7
+#: Default share of the engine-internal offset of x removed per step for a
+#: resting contact (10%: the offset decays over ~20 steps, slowly against
+#: the contact's own oscillation, so it adds no visible dynamics).
+SETTLE_RATE = 0.1
+#: f = |F_t|/F_n is tracked while F_n >= this share of the running peak F_n
+#: (the reference solver uses 1% of the final peak: F_RATIO_FLOOR).
+F_RATIO_FLOOR = 0.01
+#: Root finding on a substep: iterations and tolerance in substep fractions.
+ROOT_ITER = 60
+ROOT_TOL = 1e-13
+#: Steps a finished contact's record waits for its bodies' post-impact state.
+PENDING_MAX_STEPS = 3
+#: Guard on the number of onset/separation segments inside one engine step.
+MAX_SEGMENTS = 10000
+
+# layout of the internal state vector y (k, NY)
+_X, _V, _S, _VC, _P = 0, slice(1, 4), slice(4, 7), slice(7, 10), slice(10, 13)
+_WEL, _WVI, _Q, _WT = 13, 14, 15, 16
+_PI = slice(17, 20)  # int_0^t P dt' [N s^2]: first moment of the force, for the timing correction
+NY = 20
+
+
+def effective_inverse_inertia_free(m1, I1_world, r1, m2, I2_world, r2) -> np.ndarray:
+    """Inverse effective inertia [1/kg] at a contact point between two free rigid bodies.
+
+    W = sum_i [ (1/m_i) Id - [r_i]x I_i^-1 [r_i]x ]: the change of the relative
+    contact-point velocity per unit impulse +P on body 1 and -P on body 2.
+    m_i [kg] (inf: fixed body, contributes nothing); I_i_world [kg m^2] (3, 3)
+    inertia about the centre of mass in world axes (None or inf: no rotation);
+    r_i [m] (3,) from the body's centre of mass to the contact point.
+    Broadcasts over a leading batch dimension: (n, 3, 3) for (n,) inputs.
+    """
+    W = np.zeros(np.broadcast_shapes(np.shape(r1), np.shape(r2))[:-1] + (3, 3))
+    for name, m, I, r in (("body 1", m1, I1_world, r1), ("body 2", m2, I2_world, r2)):
+        m = np.asarray(m, dtype=float)
+        if np.any(np.isnan(m)) or np.any(m <= 0):
+            raise ValueError(f"{name} mass = {m!r} kg must be > 0 (inf for a fixed body)")
+        if np.all(np.isinf(m)):
+            continue
+        if np.any(np.isinf(m)):
+            raise ValueError(f"{name} mass mixes fixed (inf) and free bodies in one batch; call per group")
+        inv_m = 1.0 / m
+        W = W + inv_m[..., None, None] * np.eye(3)
+        if I is None or np.all(np.isinf(np.asarray(I, dtype=float))):
+            continue
+        r = np.asarray(r, dtype=float)
+        rx = _skew(r)
+        Iinv = np.linalg.inv(np.asarray(I, dtype=float))
+        W = W - rx @ Iinv @ rx
+    return W
+
+
+def _skew(r):
+    r = np.asarray(r, dtype=float)
+    z = np.zeros(r.shape[:-1])
+    return np.stack([np.stack([z, -r[..., 2], r[..., 1]], -1),
+                     np.stack([r[..., 2], z, -r[..., 0]], -1),
+                     np.stack([-r[..., 1], r[..., 0], z], -1)], -2)
+
+
+def closing_distance(xdot, xddot, dt: float, safety: float = 2.0) -> np.ndarray:
+    """How far a gap can close within one step [m] (n,): safety (x' dt + x'' dt^2/2)
+    for closing rate x' [m/s] and acceleration x'' [m/s^2] (both positive closing).
+    An adapter lists a pair as a candidate when x > -closing_distance."""
+    xd = np.maximum(np.asarray(xdot, dtype=float), 0.0)
+    xdd = np.maximum(np.asarray(xddot, dtype=float), 0.0)
+    return safety * (xd * dt + 0.5 * xdd * dt * dt)
+
+
+def onset_speed_floor(law: ForceLaw, m_eff, a_n) -> np.ndarray:
+    """Smallest onset speed used for the onset constants [m/s] (n,).
+
+    sqrt(2 a_n x_s): the speed gained falling through the static overlap x_s,
+    where the elastic force 2/3 E' psi(0) x_s^(3/2) of (29) balances m a_n
+    (a_n: external closing acceleration along the normal); at least
+    V_ONSET_MIN. A contact that begins slower is settling under a_n: its
+    damping is then that of a contact at this speed, not an unbounded one.
+    """
+    m = np.asarray(m_eff, dtype=float)
+    a = np.maximum(np.asarray(a_n, dtype=float), 0.0)
+    K = 2.0 / 3.0 * law.moduli.E * float(law.psi(np.zeros(1))[0])
+    x_s = (m * a / K) ** (2.0 / 3.0)
+    return np.maximum(np.sqrt(2.0 * a * x_s), V_ONSET_MIN)
+
+
+def _duration_estimate(law: ForceLaw, onset: dict, m, v) -> np.ndarray:
+    """Contact duration estimate [s] (n,) that sets the internal step.
+
+    MSF with omega_x from the collision itself (self-consistent, paper):
+    pi/omega_x (87). A linear spring (onset "k"): pi sqrt(m/k). Otherwise
+    the elastic Hertz duration with the law's elastic stiffness at x -> 0
+    (2/3 E' psi(0) of (29)); damping changes it by well under the factor 4
+    of margin in SUBSTEPS_PER_CONTACT.
+    """
+    if "omega_x" in onset and isinstance(getattr(law, "omega", None), str):
+        return math.pi / np.asarray(onset["omega_x"], dtype=float)
+    if "k" in onset:
+        return math.pi * np.sqrt(np.asarray(m, dtype=float) / np.asarray(onset["k"], dtype=float))
+    g = law.geom
+    k_p = float(law.psi(np.zeros(1))[0]) / (math.sqrt(g.R_a) + math.sqrt(g.R_b))
+    return cf.hertz_tau(np.asarray(m, dtype=float), np.asarray(v, dtype=float), law.moduli.E, g.R, k_p)
+
+
+def _tangent_basis(n):
+    """Orthonormal t1, t2 (k, 3) with t1 x t2 = n."""
+    e = np.where((np.abs(n[:, 0]) < 0.9)[:, None], np.array([1.0, 0.0, 0.0]), np.array([0.0, 1.0, 0.0]))
+    t1 = e - np.einsum("ij,ij->i", e, n)[:, None] * n
+    t1 /= np.linalg.norm(t1, axis=1)[:, None]
+    return t1, np.cross(n, t1)
+
+
+def _dot(a, b):
+    return np.einsum("ij,ij->i", a, b)
+
+
+def _msf_inline(law: ForceLaw) -> bool:
+    """True when the law's normal and tangential forces are MSFLaw's own, so
+    :meth:`_Batch.rhs` may evaluate them inline (one k_p and one sqrt(x) for
+    F_n, its elastic part and the shear lengths, instead of six k_p calls)."""
+    t = type(law)
+    return (t.normal_force is MSFLaw.normal_force and t.shear_lengths is MSFLaw.shear_lengths
+            and t.tangential_stiffness is MSFLaw.tangential_stiffness and t.psi is ForceLaw.psi
+            and t.kp is ForceLaw.kp and t.contact_normal_force is ForceLaw.contact_normal_force)
+
+
+class _Rows:
+    """The rows' normals, inverse inertias and external accelerations for
+    :meth:`ContactManager._begin` on the compiled path (the part of _Batch it reads)."""
+
+    def __init__(self, n, W, a):
+        self.n, self.W, self.a = n, W, a
+        self.onset: dict = {}
+
+
+def _pc(law, x_m, o1):
+    """(20), (41): P_c = 1.5 F_n(x_max, 0)/S(x_max), as the reference solver."""
+    if x_m <= 0:
+        return 0.0
+    F = float(law.contact_normal_force(np.array([x_m]), np.array([0.0]), o1)[0])
+    return 1.5 * F / float(area(min(x_m, 2 * law.geom.R * (1 - 1e-12)), law.geom, law.kp_mode))
+
+
+def _name(b):
+    return b if isinstance(b, (str, int, float)) else repr(b)
+
+
+def _plain(v):
+    a = np.asarray(v)
+    return a.tolist() if a.ndim else a.item() if hasattr(a, "item") else v
