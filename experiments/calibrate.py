@@ -56,6 +56,9 @@ from msf_contact.materials import ContactPair, Material
 from msf_contact.record import ImpactRecord
 from msf_contact.solver import Body, check_impact_inputs, reduced_mass, simulate_impact
 
+from .arguments import DEFAULT_BALL, DEFAULT_RADIUS, DEFAULT_SPEED, add_material_arguments, material, number, to_json
+from .impact import check_x_max
+
 #: MuJoCo solimp held during the fit: constant impedance d0 = d_width = 0.95
 #: (width 1 mm, midpoint 0.5, power 2 irrelevant when d0 = d_width).
 CONSTANT_SOLIMP = (0.95, 0.95, 0.001, 0.5, 2.0)
@@ -452,17 +455,14 @@ def builtin_params(fit: Fit) -> dict:
 # ------------------------------------------------------------ command line ---
 def add_calibrate_arguments(p) -> None:
     """`msf-contact calibrate`: the pair, the speed and the engine step."""
-    from . import cli
-    from .engine_cli import _number
-
-    cli._add_material_arguments(p, "ball", f"default {cli.DEFAULT_BALL}")
-    cli._add_material_arguments(p, "plate", "omitted: a rigid plate")
-    p.add_argument("--radius", type=_number, default=cli.DEFAULT_RADIUS, metavar="R",
-                   help=f"ball radius [m] (default {cli.DEFAULT_RADIUS})")
-    p.add_argument("--mass", type=_number, default=None, metavar="KG", help="ball mass [kg] (default: from density)")
-    p.add_argument("--speed", type=_number, default=cli.DEFAULT_SPEED, metavar="V",
-                   help=f"calibration (normal impact) speed [m/s] (default {cli.DEFAULT_SPEED})")
-    p.add_argument("--dt", type=_number, default=1e-4, metavar="SECONDS",
+    add_material_arguments(p, "ball", f"default {DEFAULT_BALL}")
+    add_material_arguments(p, "plate", "omitted: a rigid plate")
+    p.add_argument("--radius", type=number, default=DEFAULT_RADIUS, metavar="R",
+                   help=f"ball radius [m] (default {DEFAULT_RADIUS})")
+    p.add_argument("--mass", type=number, default=None, metavar="KG", help="ball mass [kg] (default: from density)")
+    p.add_argument("--speed", type=number, default=DEFAULT_SPEED, metavar="V",
+                   help=f"calibration (normal impact) speed [m/s] (default {DEFAULT_SPEED})")
+    p.add_argument("--dt", type=number, default=1e-4, metavar="SECONDS",
                    help="the engine time step the parameters are for [s] (default 1e-4)")
     p.add_argument("--phases", type=int, default=DEFAULT_PHASES,
                    help=f"onset phases averaged per engine figure (default {DEFAULT_PHASES})")
@@ -474,10 +474,6 @@ def add_calibrate_arguments(p) -> None:
 
 
 def cmd_calibrate(args) -> int:
-    import json
-
-    from . import cli
-
     check_positive("--radius", args.radius, unit="m")
     check_positive("--speed", args.speed, unit="m/s")
     check_positive("--dt", args.dt, unit="s")
@@ -485,14 +481,14 @@ def cmd_calibrate(args) -> int:
         raise ValueError(f"--phases = {args.phases!r} must be >= 1")
     if args.mass is not None:
         check_positive("--mass", args.mass, unit="kg")
-    ball = cli._material(args, "ball", cli.DEFAULT_BALL)
-    plate = cli._material(args, "plate", None)
+    ball = material(args, "ball", DEFAULT_BALL)
+    plate = material(args, "plate", None)
     p = problem_of(ball, plate, args.radius, args.speed, args.dt, mass=args.mass, phases=args.phases,
                    integrator=args.integrator)
-    cli.check_x_max(p.law, p.mass, args.speed)
+    check_x_max(p.law, p.mass, args.speed)
     ref, fits = calibrate(p, tuple(args.form or FORMS))
     if args.json:
-        print(cli.to_json({"reference": {k: getattr(ref, k) for k in ("cor_n", "tau", "x_max", "F_max")},
+        print(to_json({"reference": {k: getattr(ref, k) for k in ("cor_n", "tau", "x_max", "F_max")},
                            "ball": ball.name, "plate": plate.name, "radius": args.radius, "mass": p.ball.mass,
                            "speed": args.speed, "dt": args.dt, "phases": args.phases,
                            "fits": {k: f.to_dict() for k, f in fits.items()}}))
@@ -519,9 +515,3 @@ def cmd_calibrate(args) -> int:
         if f.note:
             print(f"    note: {f.note}")
     return 0
-
-
-from .cli import register_command  # noqa: E402 - the command line imports this module (commands.py)
-
-register_command("calibrate", "MuJoCo solref / pybullet restitution, stiffness and damping that reproduce MSF's "
-                 "COR and contact duration at one speed and time step", add_calibrate_arguments, cmd_calibrate)

@@ -1,28 +1,32 @@
-"""Subcommands `run`, `report` and `demo` of the `msf-contact` command line."""
+"""Subcommands `calibrate`, `run`, `report` and `demo` of the `msf-contact`
+command line (:data:`COMMANDS`; :mod:`experiments.cli` adds them to its own
+after ``impact`` and ``identify``)."""
 
 from __future__ import annotations
 
 import argparse
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
-from . import calibrate  # noqa: F401 - registers `calibrate`
-from .cli import register_command
+from . import calibrate
+from .arguments import positive_int
 
 
-def _positive_int(text: str) -> int:
-    try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"{v} must be >= 1")
-    return v
+@dataclass(frozen=True)
+class Command:
+    """A subcommand: ``add_arguments(parser)`` declares its flags,
+    ``run(args) -> int`` does the work and returns the exit code."""
+
+    help: str
+    add_arguments: Callable[[argparse.ArgumentParser], None]
+    run: Callable[[argparse.Namespace], int]
 
 
 def add_run_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("config", metavar="CONFIG.toml", help="scenario configuration (see experiments/configs/)")
     p.add_argument("--out", default=None, metavar="DIR", help="result directory (default out/<config name>)")
-    p.add_argument("--workers", type=_positive_int, default=1,
+    p.add_argument("--workers", type=positive_int, default=1,
                    help="local worker processes (default 1), or Dask workers with --dask local")
     p.add_argument("--dask", default=None, metavar="ADDRESS",
                    help="run the cells on a Dask cluster: a scheduler address, or 'local' for a LocalCluster")
@@ -64,7 +68,12 @@ def cmd_demo(args) -> int:
     return 0
 
 
-register_command("run", "run (or resume) a scenario configuration", add_run_arguments, cmd_run)
-register_command("report", "rebuild a result directory's records, figures and report", add_report_arguments,
-                 cmd_report)
-register_command("demo", "the main comparison (what `make demo` runs)", add_demo_arguments, cmd_demo)
+#: The subcommands of this module, in the order of ``msf-contact --help``.
+COMMANDS: dict[str, Command] = {
+    "calibrate": Command("MuJoCo solref / pybullet restitution, stiffness and damping that reproduce MSF's "
+                         "COR and contact duration at one speed and time step", calibrate.add_calibrate_arguments,
+                         calibrate.cmd_calibrate),
+    "run": Command("run (or resume) a scenario configuration", add_run_arguments, cmd_run),
+    "report": Command("rebuild a result directory's records, figures and report", add_report_arguments, cmd_report),
+    "demo": Command("the main comparison (what `make demo` runs)", add_demo_arguments, cmd_demo),
+}

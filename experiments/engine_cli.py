@@ -2,7 +2,7 @@
 the closed forms: the MuJoCo and pybullet adapters (``mujoco``,
 ``pybullet``) and the engines' own contact (``mujoco-builtin``,
 ``pybullet-builtin``), with their flags. Registered into
-``experiments.cli.ENGINES`` by :func:`load_engines`; the engines themselves
+:data:`experiments.impact.ENGINES` by that module; the engines themselves
 are imported only when one runs, so ``--help`` stays fast.
 
 Like the reference solver, an engine run simulates the isolated impact
@@ -12,55 +12,37 @@ Like the reference solver, an engine run simulates the isolated impact
 from __future__ import annotations
 
 import argparse
-import math
 
-_LOADED = False
+from .arguments import number, numbers
 
 #: MuJoCo's default solref and solimp (XML reference), used when not given.
 MUJOCO_DEFAULT_SOLREF = (0.02, 1.0)
 MUJOCO_DEFAULT_SOLIMP = (0.9, 0.95, 0.001, 0.5, 2.0)
 
 
-def _numbers(text: str) -> tuple[float, ...]:
-    try:
-        vals = tuple(float(v) for v in text.split(","))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a comma-separated list of numbers") from None
-    if not all(math.isfinite(v) for v in vals):
-        raise argparse.ArgumentTypeError(f"{text!r} has a non-finite number")
-    return vals
-
-
-def _number(text: str) -> float:
-    try:
-        return float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"{text!r} is not a number") from None
-
-
 def add_engine_arguments(p: argparse.ArgumentParser) -> None:
     g = p.add_argument_group("engines (--engine mujoco, pybullet, mujoco-builtin, pybullet-builtin)")
-    g.add_argument("--dt", type=_number, default=1e-4, metavar="SECONDS",
+    g.add_argument("--dt", type=number, default=1e-4, metavar="SECONDS",
                    help="engine time step [s] (default 1e-4); contacts shorter than ~50 steps are sub-cycled")
-    g.add_argument("--gap", type=_number, default=0.0, metavar="METRES",
+    g.add_argument("--gap", type=number, default=0.0, metavar="METRES",
                    help="distance between the surfaces at t = 0 [m] (default 0); sets where in a step the "
                         "contact begins")
-    g.add_argument("--gravity", type=_number, default=None, metavar="G",
+    g.add_argument("--gravity", type=number, default=None, metavar="G",
                    help="gravity [m/s^2] toward the plate (default: none, the isolated impact)")
     g.add_argument("--integrator", choices=("euler", "rk4", "implicitfast"), default="euler",
                    help="MuJoCo integrator (default euler)")
-    g.add_argument("--solref", type=_numbers, default=None, metavar="TC,ZETA|-K,-B",
+    g.add_argument("--solref", type=numbers, default=None, metavar="TC,ZETA|-K,-B",
                    help="mujoco-builtin: solref on both geoms (timeconst,dampratio or -stiffness,-damping); "
                         f"default MuJoCo's {MUJOCO_DEFAULT_SOLREF[0]:g},{MUJOCO_DEFAULT_SOLREF[1]:g}")
-    g.add_argument("--solimp", type=_numbers, default=None, metavar="D0,DW,W[,MID,POW]",
+    g.add_argument("--solimp", type=numbers, default=None, metavar="D0,DW,W[,MID,POW]",
                    help="mujoco-builtin: solimp on both geoms; default MuJoCo's "
                         + ",".join(f"{v:g}" for v in MUJOCO_DEFAULT_SOLIMP))
-    g.add_argument("--restitution", type=_number, default=None, metavar="E",
+    g.add_argument("--restitution", type=number, default=None, metavar="E",
                    help="pybullet-builtin: the pair's restitution (sqrt(E) on each body, since pybullet "
                         "multiplies them), with the settings that let it act at small speed x dt")
-    g.add_argument("--contact-stiffness", dest="contact_stiffness", type=_number, default=None, metavar="N_M",
+    g.add_argument("--contact-stiffness", dest="contact_stiffness", type=number, default=None, metavar="N_M",
                    help="pybullet-builtin: the pair's contact stiffness [N/m] (with --contact-damping)")
-    g.add_argument("--contact-damping", dest="contact_damping", type=_number, default=None, metavar="NS_M",
+    g.add_argument("--contact-damping", dest="contact_damping", type=number, default=None, metavar="NS_M",
                    help="pybullet-builtin: the pair's contact damping [N s/m] (with --contact-stiffness)")
 
 
@@ -121,19 +103,3 @@ def run_pybullet_builtin(setup):
                if getattr(a, k) is not None}
     return get_engine("pybullet-builtin")(setup.law, setup.ball, setup.plate, setup.speed, setup.angle_deg,
                                           setup.spin, builtin=builtin, **_common(a))
-
-
-def load_engines() -> None:
-    """Register the four engine runners and their flags (idempotent)."""
-    global _LOADED
-    if _LOADED:
-        return
-    _LOADED = True
-    from .cli import register_engine
-
-    register_engine("mujoco", run_mujoco, "the law inside MuJoCo (passive-force hook, sub-cycled contacts)",
-                    add_engine_arguments)
-    register_engine("pybullet", run_pybullet, "the law inside pybullet (external forces, sub-cycled contacts)")
-    register_engine("mujoco-builtin", run_mujoco_builtin, "MuJoCo's own soft contact (--solref, --solimp)")
-    register_engine("pybullet-builtin", run_pybullet_builtin,
-                    "pybullet's own contact (--restitution, --contact-stiffness/--contact-damping)")

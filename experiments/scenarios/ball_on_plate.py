@@ -32,18 +32,16 @@ import math
 from pathlib import Path
 
 from ..config import ConfigError, Field, validate
-from . import Scenario, register
+from . import Scenario
 
 SWEEP_KEYS = ("speed", "angle", "spin", "engine")
 
 
 def _impact_parser() -> argparse.ArgumentParser:
-    from .. import cli
-    from ..engine_cli import load_engines
+    from .. import impact
 
-    load_engines()
     p = argparse.ArgumentParser(prog="impact", add_help=False, exit_on_error=False)
-    cli.add_impact_arguments(p)
+    impact.add_impact_arguments(p)
     return p
 
 
@@ -145,12 +143,12 @@ def cells(cfg: dict) -> list[dict]:
 
 
 def _check_cells(cfg, path):
-    from .. import cli
+    from .. import impact
 
     for c in cells(cfg):
         try:
             args = parse_cell_args(c["argv"])
-            cli.build_impact(args)
+            impact.build_impact(args)
         except ValueError as exc:
             raise ConfigError(f"{path}: cell (speed={c['speed']}, angle={c['angle']}, spin={c['spin']}, "
                               f"engine={c['engine']}): {exc}") from None
@@ -162,17 +160,17 @@ def run_cell(cell: dict) -> list[dict]:
 
     from msf_contact.solver import simulate_impact
 
-    from .. import cli
+    from .. import impact
 
     args = parse_cell_args(cell["argv"])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        setup = cli.build_impact(args)
+        setup = impact.build_impact(args)
         if cell["engine"] == "reference":
             rec = simulate_impact(setup.law, setup.ball, setup.plate, setup.speed, setup.angle_deg, setup.spin,
                                   tangential=setup.tangential, n_samples=cell["samples"])
         else:
-            rec = cli.ENGINES[cell["engine"]].run(setup)
+            rec = impact.ENGINES[cell["engine"]].run(setup)
     d = rec.to_dict() if hasattr(rec, "to_dict") else dict(rec)
     return [d]
 
@@ -290,5 +288,5 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     return "".join(lines), figs
 
 
-register(Scenario("ball-on-plate", "impacts of a ball on a plate over speeds, angles and spins",
-                  load, cells, run_cell, report))
+SCENARIO = Scenario("ball-on-plate", "impacts of a ball on a plate over speeds, angles and spins",
+                    load, cells, run_cell, report)

@@ -40,7 +40,7 @@ from pathlib import Path
 
 from ..calibrate import DEFAULT_PHASES, FORMS
 from ..config import ConfigError, Field, validate
-from . import Scenario, register
+from . import Scenario
 from .ball_on_plate import _flag_names, _impact_parser, parse_cell_args, to_argv
 
 #: [impact] keys this scenario sets itself.
@@ -127,13 +127,13 @@ def cells(cfg: dict) -> list[dict]:
 def _problem(argv: tuple, speed: float, dt: float, phases: int, integrator: str):
     import warnings
 
-    from .. import cli
+    from .. import impact
     from ..calibrate import Problem
 
     args = parse_cell_args(list(argv) + ["--speed", repr(float(speed))])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        s = cli.build_impact(args)
+        s = impact.build_impact(args)
     return Problem(s.law, s.ball, s.plate, s.speed, dt, phases=phases, integrator=integrator)
 
 
@@ -170,7 +170,7 @@ def run_cell(cell: dict) -> list[dict]:
         else:
             s = pybullet_builtin(p, fit.params, speed=v, angle_deg=a, friction=fr)
         return [dict(asdict(s), engine=eng, params=fit.params, fit_cor_ok=fit.cor_ok, fit_tau_ok=fit.tau_ok)]
-    from .. import cli
+    from .. import impact
 
     setup_args = parse_cell_args(list(argv) + ["--speed", repr(float(v)), "--angle", repr(float(a)),
                                                "--engine", eng, "--dt", repr(cell["dt"]),
@@ -180,7 +180,7 @@ def run_cell(cell: dict) -> list[dict]:
     recs = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        setup = cli.build_impact(setup_args)
+        setup = impact.build_impact(setup_args)
         from engines.base import get_engine
 
         run = get_engine(eng)
@@ -356,5 +356,5 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     return "".join(lines), figs
 
 
-register(Scenario("calibration", "fit MuJoCo/pybullet built-in contact to MSF at one speed; departures",
-                  load, cells, run_cell, report))
+SCENARIO = Scenario("calibration", "fit MuJoCo/pybullet built-in contact to MSF at one speed; departures",
+                    load, cells, run_cell, report)

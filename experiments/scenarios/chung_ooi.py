@@ -24,7 +24,7 @@ import math
 from pathlib import Path
 
 from ..config import Field, validate
-from . import Scenario, register
+from . import Scenario
 
 MATERIALS = {
     "glass": dict(E=4.8e10, nu=0.20, density=2800.0),
@@ -231,5 +231,5 @@ def report(out: Path, rows, cfg):
     return "".join(lines), []
 
 
-register(Scenario("chung-ooi", "Chung & Ooi (2011) DEM benchmark tests 1-4 on the reference solver",
-                  load, cells, run_cell, report))
+SCENARIO = Scenario("chung-ooi", "Chung & Ooi (2011) DEM benchmark tests 1-4 on the reference solver",
+                    load, cells, run_cell, report)

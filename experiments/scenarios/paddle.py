@@ -43,7 +43,7 @@ import math
 from pathlib import Path
 
 from ..config import ConfigError, Field, validate
-from . import Scenario, register
+from . import Scenario
 from .ball_on_plate import _flag_names, _impact_parser, parse_cell_args, to_argv
 
 ENGINES = ("mujoco", "pybullet", "mujoco-builtin", "pybullet-builtin")
@@ -135,12 +135,12 @@ def cells(cfg: dict) -> list[dict]:
 def _setup(argv: tuple, speed: float):
     import warnings
 
-    from .. import cli
+    from .. import impact
 
     args = parse_cell_args(list(argv) + ["--speed", repr(float(speed))])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return cli.build_impact(args)
+        return impact.build_impact(args)
 
 
 @functools.lru_cache(maxsize=16)
@@ -475,5 +475,5 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     return "".join(lines), figs
 
 
-register(Scenario("paddle", "a paddle on a driven hinge striking a ball: MSF vs built-in contact",
-                  load, cells, run_cell, report))
+SCENARIO = Scenario("paddle", "a paddle on a driven hinge striking a ball: MSF vs built-in contact",
+                    load, cells, run_cell, report)
