@@ -19,6 +19,7 @@ demo: $(STAMP)
 	$(VENV)/bin/msf-contact demo --out out/demo
 
 test: $(STAMP)
+	$(VENV)/bin/lint-imports --no-logo  # the layers of docs/architecture.md (pyproject.toml)
 	$(PY) -m pytest -q -n 2 tests
 
 bench: $(STAMP)
@@ -47,4 +48,4 @@ crosscheck: $(XSTAMP)
 	$(XPY) scripts/crosscheck.py
 
 clean:
-	rm -rf $(VENV) $(XVENV) out .pytest_cache
+	rm -rf $(VENV) $(XVENV) out .pytest_cache .import_linter_cache .grimp_cache

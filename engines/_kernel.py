@@ -1,11 +1,15 @@
 """Compiled (numba) core of :class:`engines._contacts.ContactManager`.
 
+(Over 600 lines because it is one algorithm written out per row, the
+compiled twin of :mod:`engines._contacts.reference`, kept in one file to be
+read side by side with it.)
+
 The same algorithm as the manager's numpy path (module docstring of
 :mod:`engines._contacts`; the numpy path, :mod:`engines._contacts.reference`,
-is the readable reference of this kernel: read it first), written per contact row with scalar arithmetic
-and compiled, for the five registry laws of :mod:`msf_contact.laws` used
-unchanged (their classes not subclassed with other force methods). Per
-engine step the manager calls
+is the readable reference of this kernel: read it first), written per
+contact row with scalar arithmetic and compiled, for the five registry
+laws of :mod:`msf_contact.laws` used unchanged (their classes not
+subclassed with other force methods). Per engine step the manager calls
 
 1. :func:`prelude`: the internal state y (k, NY) of each candidate row
    (timing correction removed, resting relaxation, tangential displacement

@@ -1,6 +1,10 @@
 """The pybullet adapter: force laws between pairs of bodies through
 ``applyExternalForce`` (the contract is in :mod:`engines.base`).
 
+(Over 600 lines because the candidate search, the kinematics and the force
+application share one client's per-step caches, and the engine-path issues
+are reworking the step: its split waits for that rework.)
+
 What it does each engine step (``step``):
 
 1. Read every body of the pairs once (``getBasePositionAndOrientation`` and
