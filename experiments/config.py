@@ -141,7 +141,7 @@ def build_material(sec: dict, path: str, role: str, default: str | None) -> Mate
     if name is None and sec.get("E") is None:
         raise _fail(path, f"{role}.material", "or E is required")
     try:
-        base = preset(name) if name else Material(role, 1.0, 0.0, 0.3, 1000.0)
+        base = preset(name) if name else Material(role, 1e6, 0.0, 0.3, 1000.0)  # E is given: it replaces 1e6
     except ValueError as exc:
         raise _fail(path, f"{role}.material", str(exc)) from None
     over = {k2: sec[k1] for k1, k2 in (("E", "E_storage"), ("tan_delta", "tan_delta"), ("nu", "nu"),

@@ -17,18 +17,6 @@ def python_blocks(path: Path) -> list[str]:
     return re.findall(r"```python\n(.*?)```", path.read_text(), flags=re.S)
 
 
-def test_readme_tour_gives_the_reference_solver_record(capsys):
-    (block,) = python_blocks(ROOT / "README.md")
-    ns: dict = {}
-    exec(compile(block, "README.md", "exec"), ns)
-    rec = ns["rec"]
-    ball, plate = preset("natural-rubber"), preset("steel")
-    law = make_law("msf", ContactPair(ball, plate), Curvature.sphere_on_plane(0.02))
-    want = simulate_impact(law, Body.sphere(ball, 0.02), Body.half_space(plate), speed=2.0, angle_deg=60)
-    assert rec.cor_n == want.cor_n and rec.spin_out == want.spin_out
-    assert 0 < rec.cor_t < 1
-
-
 @pytest.mark.mujoco
 def test_engines_doc_example_bounces_like_the_reference(capsys):
     (block,) = python_blocks(ROOT / "docs" / "engines.md")
