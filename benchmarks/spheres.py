@@ -128,6 +128,9 @@ def _close(engine, handle):
             pb.disconnect(handle)
     else:
         handle.close()
+        import pybullet as pb
+        if pb.isConnected(handle.client):
+            pb.disconnect(handle.client)
 
 
 def measure(engine: str, n: int, repeats: int) -> dict:

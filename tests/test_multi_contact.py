@@ -89,7 +89,9 @@ class Scene:
                      for (i, j), law in zip(pairs, laws)]
             self.adapter = PybulletAdapter(c, specs)
             self._pb, self._client = pb, c
-            self._ctx = self.adapter
+            self._ctx = contextlib.ExitStack()  # on exit: the adapter closes, then the client is disconnected
+            self._ctx.callback(pb.disconnect, c)
+            self._ctx.enter_context(self.adapter)
         step = self.adapter.manager.step
 
         def spy(kin):

@@ -147,7 +147,7 @@ def test_dropped_ball_comes_to_rest_without_energy_gain():
         return m * (0.5 * np.dot(v, v) + g * pos[2] - 0.5 * g * dt * v[2])
 
     flights = []  # [invariant at the end of the flight, its last step] per free flight
-    with PybulletAdapter(scene.client, [PairSpec(scene.body1, scene.body2, law)]) as ad:
+    with scene, PybulletAdapter(scene.client, [PairSpec(scene.body1, scene.body2, law)]) as ad:
         for k in range(int(0.55 / dt)):  # at rest (overlap within 1e-4) after 0.5 s
             ad.step()
             if not ad.manager.active[0]:
@@ -184,7 +184,7 @@ def test_two_spheres_in_flight_momentum_and_no_double_count():
                 b2.mass * np.array(pb.getBaseVelocity(u2, physicsClientId=scene.client)[0]))
 
     p1_0, p2_0 = momenta()
-    with PybulletAdapter(scene.client, [PairSpec(scene.body1, scene.body2, law)]) as ad:
+    with scene, PybulletAdapter(scene.client, [PairSpec(scene.body1, scene.body2, law)]) as ad:
         seen_builtin = 0
         while not ad.records:
             ad.step()
@@ -207,7 +207,7 @@ def test_paddle_link_matches_reference_with_effective_mass():
     ref = simulate_impact(law, b1, Body(RIGID, math.inf, m_eff), SPEED)
     dt = ref.tau / 60
     scene = scenes.paddle_and_ball(b1, paddle, d, SPEED, dt=dt, gap=1e-4)
-    with PybulletAdapter(scene.client, [PairSpec(scene.body1, scene.body2, law)]) as ad:
+    with scene, PybulletAdapter(scene.client, [PairSpec(scene.body1, scene.body2, law)]) as ad:
         while not ad.records:
             ad.step()
             assert ad.time < 100 * ref.tau
@@ -303,7 +303,7 @@ def test_box_edge_contact_refused():
     pb.resetBasePositionAndOrientation(scene.body1[0], [scenes.PLATE_HALF_WIDTH + 0.005, 0, R + 1e-4], [0, 0, 0, 1],
                                        physicsClientId=c)
     pb.resetBaseVelocity(scene.body1[0], [-0.5, 0, -0.5], [0, 0, 0], physicsClientId=c)
-    with PybulletAdapter(c, [PairSpec(scene.body1, scene.body2, law)]) as ad:
+    with scene, PybulletAdapter(c, [PairSpec(scene.body1, scene.body2, law)]) as ad:
         with pytest.raises(ValueError, match="edge"):
             ad.step(5)
 
@@ -314,7 +314,7 @@ def test_box_face_equals_plane():
     out = {}
     for kind in ("plane", "box"):
         scene = scenes.ball_on_plate(b1, SPEED, 60.0, dt=ref.tau / 60, gap=1e-4, plate=kind)
-        with PybulletAdapter(scene.client, [PairSpec(scene.body1, scene.body2, law)]) as ad:
+        with scene, PybulletAdapter(scene.client, [PairSpec(scene.body1, scene.body2, law)]) as ad:
             while not ad.records:
                 ad.step()
             out[kind] = ad.records[0]

@@ -228,6 +228,8 @@ class Records:
         self.J[sel] = 0.0
         self.dv_corr[sel] = 0.0
         self.dvc_corr[sel] = 0.0
+        self._held_force[sel] = 0.0
+        self.in_island[sel] = False
         return dropped
 
     def _publish(self, p: int, rec: ImpactRecord) -> None:

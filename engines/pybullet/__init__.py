@@ -117,7 +117,7 @@ def run_impact(law: ForceLaw, body1: Body, body2: Body, speed: float, angle_deg:
         return run_builtin_impact(body1, body2, speed, angle_deg, spin, dt=dt, gap=gap, gravity=gravity,
                                   builtin=builtin, law=law)
     scene = _scene(body1, body2, speed, angle_deg, spin, dt, gap, gravity)
-    with PybulletAdapter(scene.client, [PairSpec(scene.body1, scene.body2, law, tangential)]) as ad:
+    with scene, PybulletAdapter(scene.client, [PairSpec(scene.body1, scene.body2, law, tangential)]) as ad:
         ad.manager.history = True  # the record carries the step-averaged force-time curve
         limit = int(math.ceil(_max_time(law, body1, body2, speed, angle_deg, dt, gap) / dt))
         for _ in range(limit):

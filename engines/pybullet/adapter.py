@@ -36,7 +36,14 @@ Python API (~0.5 us a call; there is no call that reads or pushes several
 bodies); the array work between them is compiled.
 
 pybullet's own response for the pairs is switched off with
-``setCollisionFilterPair(..., enableCollision=0)``, so nothing is counted twice.
+``setCollisionFilterPair(..., enableCollision=0)``, so nothing is counted
+twice, and switched back on by :meth:`PybulletAdapter.close`, which never
+disconnects the client. pybullet has no force callback: while the adapter
+is open, :meth:`PybulletAdapter.step` replaces ``stepSimulation``; a step
+taken without it, or a body reset, is seen at the next step start (a free
+body's centre of mass is not the last one plus dt times its velocity) and
+interrupts the pairs' contacts, with a warning unless declared with
+:meth:`PybulletAdapter.placed`.
 
 The relative acceleration of the contact points from everything but the
 managed contacts (``a_ext``) is measured: the change of v_rel over the last
@@ -63,6 +70,7 @@ from __future__ import annotations
 
 import gc
 import math
+import warnings
 from dataclasses import dataclass
 from itertools import chain, repeat
 
@@ -74,6 +82,14 @@ from engines._geometry import cross_rows
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance, effective_inverse_inertia_free
 from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines.base import STEPS_PER_CONTACT_MIN, ContactKinematics, EngineAdapter, PairSpec, check_law_curvature
+
+#: A free body's centre of mass at a step start must be the last one plus dt
+#: times its velocity to ADVANCE_ATOL + ADVANCE_RTOL (|com| + dt |v|) [m]
+#: (pybullet's semi-implicit Euler, exact to round-off: 1e-17 m measured at
+#: dt = 1 ms); otherwise the simulation advanced without the adapter, or a
+#: body was placed.
+ADVANCE_ATOL = 1e-12
+ADVANCE_RTOL = 1e-9
 
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times
 #: the distance the surfaces can close in one step: a safety factor 2 on the
@@ -143,8 +159,13 @@ class _Bodies:
 class PybulletAdapter(EngineAdapter):
     """Force laws between pairs of pybullet bodies.
 
-    client: a pybullet physics client id (DIRECT or GUI), stepped only
-        through this adapter while it is in use.
+    client: a pybullet physics client id (DIRECT or GUI). The adapter never
+        owns it (never disconnects it). While the adapter is open,
+        :meth:`step` replaces ``stepSimulation()`` (pybullet has no force
+        callback: it applies the forces, then steps); a step taken without it
+        is detected at the next :meth:`step` and warned about (a jump: the
+        pairs' contacts are interrupted). :meth:`close` (or leaving the
+        ``with`` block) gives the pairs back to pybullet's own contact.
     pairs: PairSpec with ``body1``/``body2`` = (body unique id, link index),
         link -1 the base; each link must carry exactly one collision shape,
         a sphere, plane or box (a box is met on its faces only).
@@ -215,6 +236,15 @@ class PybulletAdapter(EngineAdapter):
         self._push = np.full(n, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
         self._cur_bodies: _Bodies | None = None
         self.manager.set_coupling(self._keys, self._coupling_blocks)
+        # the free bodies' centres of mass at the last step start (B, 3): pybullet integrates
+        # positions with the new velocity, com_k = com_{k-1} + dt v_k to round-off (1e-17 m
+        # measured), so anything else is a step taken without the adapter or a body placed
+        self._last_com = np.zeros((len(self._body_list), 3))
+        self._have_com = False
+        self._declared: set[int] = set()  # body slots placed by the caller (placed())
+        #: jumps seen (bodies that moved other than by one adapter step), contacts they interrupted
+        self.jumps = 0
+        self.interrupted = 0
 
     # -- validation ---------------------------------------------------------
     def _check_body(self, b, label):
@@ -363,10 +393,27 @@ class PybulletAdapter(EngineAdapter):
                     gc.enable()
 
     def close(self) -> None:
-        """Disconnect the client (the adapter owns it from construction on)."""
-        if not self._closed and pb.isConnected(self.client):
-            pb.disconnect(self.client)
+        """Give the pairs back to pybullet's own contact
+        (``setCollisionFilterPair(..., enableCollision=1)``: pybullet has no
+        getter for the filter, so a pair you had disabled yourself is enabled
+        again). The client stays connected: the adapter never owns it, and a
+        plain ``stepSimulation()`` afterwards runs pybullet's contact for the
+        pairs. Records stay readable; ``step`` raises afterwards."""
+        if self._closed:
+            return
         self._closed = True
+        if pb.isConnected(self.client):
+            for (u1, l1), (u2, l2) in self._bodies:
+                pb.setCollisionFilterPair(u1, u2, l1, l2, enableCollision=1, physicsClientId=self.client)
+
+    def placed(self, bodies) -> None:
+        """Say that ``bodies`` ((body unique id, link index) or body unique ids)
+        were placed (``resetBasePositionAndOrientation``, ``resetBaseVelocity``)
+        since the last step: their pairs' contacts are interrupted quietly
+        instead of with the warning an undeclared jump gives (:meth:`step`)."""
+        for b in bodies:
+            uid = int(b[0]) if isinstance(b, (tuple, list)) else int(b)
+            self._declared.update(j for j, bb in enumerate(self._body_list) if bb[0] == uid)
 
     def __enter__(self):
         return self
@@ -584,6 +631,7 @@ class PybulletAdapter(EngineAdapter):
         required = np.zeros(len(self.pairs), bool)
         required[self.manager.required_pairs] = True  # in contact, or a timing correction to remove
         bodies = self._read_bodies()
+        self._check_advance(bodies)
         grav = self._gravity()
         blocks = []
         if self._fast.size:
@@ -656,6 +704,46 @@ class PybulletAdapter(EngineAdapter):
                 W[on] += gp * gq * (inv_m * eye - rp @ Iinv @ rq)
                 Wc[on] += gp * gq * inv_m * eye
         return W, Wc
+
+    def _check_advance(self, bodies: _Bodies) -> None:
+        """Compare the free bodies with the last step start (``_last_com``):
+        a body that moved other than by one step of pybullet's integrator is a
+        jump: its pairs' contacts are interrupted (no record; not integrated
+        across the jump) and their a_ext restarts from gravity; undeclared
+        (not :meth:`placed`), it warns, naming the fix."""
+        free = self._b_free
+        com = bodies.com
+        if self._have_com:
+            r = np.abs(com - self._last_com - self._dt * bodies.v).max(axis=1)
+            tol = ADVANCE_ATOL + ADVANCE_RTOL * (np.abs(com).max(axis=1) + self._dt * np.abs(bodies.v).max(axis=1))
+            moved = free & (r > tol)
+            declared = np.zeros_like(moved)
+            declared[list(self._declared)] = True
+            moved |= declared
+            if np.any(moved):
+                self._jump(moved, np.any(moved & ~declared))
+        self._declared.clear()
+        self._last_com[:] = com
+        self._have_com = True
+
+    def _jump(self, moved, warn: bool) -> None:
+        pairs = np.flatnonzero(moved[self._slot[:, 0]] | moved[self._slot[:, 1]])
+        if not pairs.size:
+            return
+        self.jumps += 1
+        why = (f"pybullet's bodies {sorted({self._body_list[j] for j in np.flatnonzero(moved)})} moved between "
+               f"adapter.step() calls other than by one step (t = {self.time:.6g} s)")
+        n = self.manager.interrupt(pairs, why)
+        self.interrupted += n
+        self._have_last[pairs] = False
+        self._last_dv[pairs] = 0.0
+        if warn:
+            warnings.warn(f"{why}: pybullet was stepped without the adapter, or a body was reset. While MSF is "
+                          "on, call adapter.step() instead of p.stepSimulation() (pybullet has no force callback: "
+                          "adapter.step() applies the forces and steps), or adapter.close() first to give the pairs "
+                          "back to pybullet's contact; declare bodies you place with adapter.placed(). "
+                          f"{n} MSF contact(s) in progress were interrupted without a record", RuntimeWarning,
+                          stacklevel=4)
 
     def _apply(self, bodies: _Bodies, ph, F, point) -> None:
         """Apply the forces F (k, 3) at ``point`` (k, 3) on body 1 of the pairs ph

@@ -74,6 +74,8 @@ class PybulletSpherePool(SpherePool):
                            np.asarray(vel, float).tolist()):
             pb.resetBasePositionAndOrientation(u, p, _IDENTITY, physicsClientId=c)
             pb.resetBaseVelocity(u, v, _ZERO3, physicsClientId=c)
+        if getattr(self, "adapter", None) is not None:
+            self.adapter.placed(self.uid[np.asarray(idx, int)].tolist())
 
     def centres(self, idx) -> np.ndarray:
         c = self.client
@@ -89,6 +91,6 @@ class PybulletSpherePool(SpherePool):
 
     def close(self) -> None:
         if getattr(self, "adapter", None) is not None:
-            self.adapter.close()
-        elif self.client is not None and pb.isConnected(self.client):
+            self.adapter.close()  # gives the pairs back; the client is ours to disconnect
+        if self.client is not None and pb.isConnected(self.client):
             pb.disconnect(self.client)

@@ -52,6 +52,13 @@ class Scene:
         if pb.isConnected(self.client):
             pb.disconnect(self.client)
 
+    def __enter__(self) -> "Scene":
+        return self
+
+    def __exit__(self, *exc) -> bool:
+        self.close()
+        return False
+
 
 def new_client(dt: float, gravity: float | None = None) -> int:
     """A DIRECT client with time step dt [s], one step per stepSimulation

@@ -326,7 +326,7 @@ def strike_pybullet(law, ball, pad: dict, v_ball: float, u: float, drive: str, d
                 raise RuntimeError(f"the ball did not reach the paddle within {max_steps} steps of dt = {dt!r} s")
             out.update(tau=n_force * dt, carried=carried, **_pybullet_state(c, ub, up, lp, d))
     finally:
-        scene.close()  # the adapter owns and closes the client on leaving its block
+        scene.close()
     return out
 
 
