@@ -114,7 +114,10 @@ class Ellipsoid:
 @dataclass(frozen=True)
 class Capsule:
     """radius [m], half_length [m] of the segment along z. Side: 1/radius
-    around the axis, 0 along it; caps: the sphere of the radius."""
+    around the axis, 0 along it; caps: the sphere of the radius. A point at
+    or beyond the segment's end (|z| >= half_length) is on a cap whatever
+    the normal: engines report a capsule lying on a plane as its two end
+    spheres' contacts, on the seam between cap and side."""
 
     radius: float
     half_length: float
@@ -125,7 +128,8 @@ class Capsule:
 
     def curvature(self, point, normal) -> SurfaceCurvature:
         n = _unit(normal)
-        if abs(n[2]) > NORMAL_TOL:  # a cap (the side's normal is perpendicular to the axis)
+        on_cap = point is not None and abs(float(np.asarray(point, dtype=float)[2])) >= self.half_length * (1 - 1e-9)
+        if on_cap or abs(n[2]) > NORMAL_TOL:  # a cap (the side's normal is perpendicular to the axis)
             return SurfaceCurvature.umbilic(1.0 / self.radius, n)
         return _line(1.0 / self.radius, _unit(np.cross(np.array([0.0, 0.0, 1.0]), n), "side tangent"), n)
 

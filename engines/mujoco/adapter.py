@@ -135,6 +135,13 @@ MJ_MAXVAL = 1e10
 #: effect; a factor 10 of margin for the lever arm and the other dofs).
 MJ_MAXVAL_SHARE = 0.1
 _SECOND = ("sphere", "plane", "box")
+#: Geoms MuJoCo's narrow phase collides and msf_contact.shapes has a curvature for.
+_NARROW = ("sphere", "plane", "box", "capsule", "cylinder", "ellipsoid", "mesh")
+#: Points managed per geom pair from MuJoCo's narrow phase (its deepest ones
+#: when it lists more): a box face or a cylinder end on a plane gives 4, a
+#: capsule 2. A mesh is one smooth convex surface: its deepest point only
+#: (its vertices near the bottom are samples of one contact, not contacts).
+NARROW_SLOTS = {"box": 4, "cylinder": 4, "capsule": 2}
 _ZERO3 = np.zeros(3)  # what body 2 may be; body 1 is a sphere
 
 
@@ -147,10 +154,12 @@ class _Pair:
     geom2: int
     body1: int
     body2: int
-    kind2: str  # "sphere", "plane" or "box"
-    radius1: float
+    kind2: str  # "sphere", "plane", "box", or "narrow" (MuJoCo's narrow phase, engines.mujoco.narrow)
+    radius1: float  # body 1's radius [m] (a narrow pair: its geom's bounding radius, a lever-arm bound)
     fixed1: bool
     fixed2: bool
+    narrow: int = -1  # a narrow pair: its geom pair's index in the adapter's NarrowPhase
+    slot: int = 0  # a narrow pair: which of the geom pair's points (engines._narrow.SlotMatcher)
 
 
 def geom_type_name(model: mujoco.MjModel, g: int) -> str:
@@ -391,7 +400,8 @@ class MujocoAdapter(EngineAdapter):
 
     name = "mujoco"
 
-    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, pairs: list[PairSpec], compiled: bool = True):
+    def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, pairs: list[PairSpec], compiled: bool = True,
+                 edge_radii: dict | None = None):
         if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
             raise ValueError(f"model, data must be mujoco.MjModel and mujoco.MjData, got "
                              f"{type(model).__name__}, {type(data).__name__}")
@@ -399,8 +409,24 @@ class MujocoAdapter(EngineAdapter):
         if not pairs:
             raise ValueError("pairs is empty: give at least one PairSpec")
         self._excluded = set(int(s) for s in model.exclude_signature)
-        self._pairs = [self._resolve(i, p) for i, p in enumerate(pairs)]
-        super().__init__(pairs)
+        #: edge radius [m] per box or cylinder geom name (msf_contact.shapes.DEFAULT_EDGE_RADIUS otherwise)
+        self.edge_radii = dict(edge_radii or {})
+        self._narrow_pairs: list = []  # per narrow geom pair: (geom1, geom2, shape1, shape2, SlotMatcher)
+        self._pairs = []
+        expanded = []
+        for i, p in enumerate(pairs):
+            for q in self._resolve(i, p, len(self._pairs)):
+                self._pairs.append(q)
+                expanded.append(p)
+        self._narrow = None
+        if self._narrow_pairs:
+            from engines.mujoco.narrow import NarrowPhase
+
+            self._narrow = NarrowPhase(model, [(g1, g2) for g1, g2, *_ in self._narrow_pairs])
+            self._narrow_key = None
+            self._narrow_found: list = []
+            self._narrow_checked = np.zeros(len(self._pairs), bool)
+        super().__init__(expanded)
         nv = model.nv
         self._jac = np.zeros((3, nv))
         self._jac2 = np.zeros((3, nv))
@@ -463,22 +489,20 @@ class MujocoAdapter(EngineAdapter):
                              f"(geoms: {', '.join(repr(n) for n in names if n) or 'none named'})")
         return g
 
-    def _resolve(self, i: int, p: PairSpec) -> _Pair:
+    def _resolve(self, i: int, p: PairSpec, first: int) -> list[_Pair]:
+        """The managed contacts of PairSpec i (``first``: the index of the
+        first): one for the analytic pairs (a sphere on a sphere, a plane or a
+        box face), one per point of MuJoCo's narrow phase for the others."""
         m = self.model
         g1, g2 = self._geom(p.body1, "body1", i), self._geom(p.body2, "body2", i)
         if g1 == g2:
             raise ValueError(f"pair {i}: body1 and body2 are the same geom {p.body1!r}")
         t1, t2 = geom_type_name(m, g1), geom_type_name(m, g2)
         for name, t in ((p.body1, t1), (p.body2, t2)):
-            if t not in _SECOND:
-                raise ValueError(f"pair {i}: geom {name!r} is a {t}; the MSF contact needs smooth curvature "
-                                 f"and the MuJoCo adapter supports sphere, plane and box (face) geoms only")
-        if t1 != "sphere":
-            raise ValueError(f"pair {i}: body1 = {p.body1!r} is a {t1}; body1 must be the sphere "
-                             f"(the normal points from body2 to body1)")
-        R1 = float(m.geom_size[g1, 0])
-        R2 = float(m.geom_size[g2, 0]) if t2 == "sphere" else math.inf
-        check_law_curvature(f"pair {i}", p, R1, R2)
+            if t not in _NARROW:
+                raise ValueError(f"pair {i} ({p.body1!r}, {p.body2!r}): geom {name!r} is a {t}; the MSF contact "
+                                 f"needs the curvature at the contact point, which msf_contact.shapes has for "
+                                 f"{', '.join(_NARROW)} geoms (make it one of those, or use the built-in contact)")
         why = _mujoco_contact_on(m, g1, g2, self._excluded)
         if why is not None:
             raise ValueError(f"pair {i} ({p.body1!r}, {p.body2!r}): MuJoCo's own contact is on ({why}); "
@@ -489,7 +513,29 @@ class MujocoAdapter(EngineAdapter):
         fixed1, fixed2 = int(m.body_weldid[b1]) == 0, int(m.body_weldid[b2]) == 0
         if fixed1 and fixed2:
             raise ValueError(f"pair {i}: both {p.body1!r} and {p.body2!r} are welded to the world")
-        return _Pair(i, g1, g2, b1, b2, t2, R1, fixed1, fixed2)
+        if t1 == "sphere" and t2 in _SECOND:  # the analytic paths (engines._geometry), kept as they are
+            R1 = float(m.geom_size[g1, 0])
+            R2 = float(m.geom_size[g2, 0]) if t2 == "sphere" else math.inf
+            check_law_curvature(f"pair {i}", p, R1, R2)
+            return [_Pair(first, g1, g2, b1, b2, t2, R1, fixed1, fixed2)]
+        if t1 == "plane":
+            raise ValueError(f"pair {i}: body1 = {p.body1!r} is a plane; body1 must be the curved body "
+                             f"(the normal points from body2 to body1): swap body1 and body2")
+        from engines._narrow import SlotMatcher, make_shape
+
+        shapes = []
+        for g, t in ((g1, t1), (g2, t2)):
+            verts = None
+            if t == "mesh":
+                k = int(m.geom_dataid[g])
+                verts = m.mesh_vert[int(m.mesh_vertadr[k]):int(m.mesh_vertadr[k]) + int(m.mesh_vertnum[k])]
+            shapes.append(make_shape(t, m.geom_size[g], edge_radius=self.edge_radii.get(m.geom(g).name),
+                                     vertices=verts))
+        n_slots = max(NARROW_SLOTS.get(t1, 1), NARROW_SLOTS.get(t2, 1) if t2 != "plane" else 1)
+        k = len(self._narrow_pairs)
+        self._narrow_pairs.append((g1, g2, shapes[0], shapes[1], SlotMatcher(n_slots, float(m.geom_rbound[g1]))))
+        return [_Pair(first + s, g1, g2, b1, b2, "narrow", float(m.geom_rbound[g1]), fixed1, fixed2, k, s)
+                for s in range(n_slots)]
 
     # -- contract --------------------------------------------------------------
     @property
@@ -627,6 +673,8 @@ class MujocoAdapter(EngineAdapter):
         """The contact of pair p from the current poses (engines._geometry);
         a sphere at a box edge or corner within reach raises ValueError."""
         m, d = self.model, self.data
+        if p.kind2 == "narrow":
+            return self._narrow_detection(p)
         c1 = d.geom_xpos[p.geom1]
         if p.kind2 == "sphere":
             return sphere_sphere(c1, p.radius1, d.geom_xpos[p.geom2], float(m.geom_size[p.geom2, 0]))
@@ -641,6 +689,84 @@ class MujocoAdapter(EngineAdapter):
         except ValueError as exc:
             raise ValueError(f"pair {p.index} ({self.pairs[p.index].body1!r}, {self.pairs[p.index].body2!r}): "
                              f"{exc}") from None
+
+    def _narrow_points(self) -> list:
+        """MuJoCo's narrow-phase points of every narrow geom pair at the
+        current state, assigned to slots (engines._narrow.SlotMatcher): per
+        geom pair a list over slots of (x, point, normal) or None; computed
+        once per state."""
+        d = self.data
+        key = (float(d.time), d.qpos.tobytes())
+        if key == self._narrow_key:
+            return self._narrow_found
+        m = self.model
+        # margin: what the surfaces can close in a step at the bodies' speeds (x2), at least 1 mm
+        lin, ang = np.linalg.norm(d.cvel[:, 3:], axis=1), np.linalg.norm(d.cvel[:, :3], axis=1)
+        margin = np.zeros(self._narrow.geoms.size)
+        for g1, g2, *_ in self._narrow_pairs:
+            b1, b2 = m.geom_bodyid[g1], m.geom_bodyid[g2]
+            v = lin[b1] + ang[b1] * m.geom_rbound[g1] + lin[b2] + ang[b2] * m.geom_rbound[g2]
+            reach = max(CANDIDATE_FACTOR * (v * self.timestep + float(np.linalg.norm(m.opt.gravity))
+                                            * self.timestep ** 2), 1e-3)
+            for g in (g1, g2):
+                j = int(np.searchsorted(self._narrow.geoms, g))
+                margin[j] = max(margin[j], reach)
+        raw = self._narrow.detect(d, margin)
+        busy = np.zeros(len(self._pairs), bool)
+        busy[self.manager.required_pairs] = True
+        out = []
+        for k, ((g1, g2, s1, s2, match), (x, pts, nrm)) in enumerate(zip(self._narrow_pairs, raw)):
+            first = next(q.index for q in self._pairs if q.narrow == k)
+            rot1 = d.geom_xmat[g1].reshape(3, 3)
+            local = (pts - d.geom_xpos[g1]) @ rot1
+            slots = match.assign(local, x, busy[first:first + match.n])
+            per = [None] * match.n
+            for j, s_ in enumerate(slots):
+                if s_ >= 0:
+                    per[s_] = (float(x[j]), pts[j], nrm[j])
+            out.append(per)
+        self._narrow_key, self._narrow_found = key, out
+        return out
+
+    def _narrow_detection(self, p: _Pair) -> Detection:
+        """Detection of narrow pair p's slot from MuJoCo's narrow phase; at a
+        contact's onset the law's curvature is checked against the contact's
+        (engines._narrow.contact_curvature); a slot MuJoCo no longer lists is
+        a gap beyond the detection margin."""
+        from engines._narrow import contact_curvature, curvature_mismatch, curvature_tolerance
+
+        d = self.data
+        found = self._narrow_points()[p.narrow][p.slot]
+        if found is None:  # beyond the detection margin: a gap larger than a step can close
+            self._narrow_checked[p.index] = False
+            x, point, n = -1.0, d.geom_xpos[p.geom1].copy(), np.array([0.0, 0.0, 1.0])
+            det = Detection(np.array([x]), n[None], point[None], point[None], point[None],
+                            np.full((1, 2), math.inf), np.full((1, 2), math.inf))
+            return det
+        x, point, n = found
+        half = 0.5 * max(-x, 0.0)  # across a gap each body's point is on its own surface
+        p1, p2 = point + half * n, point - half * n
+        det = Detection(np.array([x]), n[None].copy(), point[None].copy(), p1[None], p2[None],
+                        np.full((1, 2), math.inf), np.full((1, 2), math.inf))
+        if not self.manager.active[p.index] and not self._narrow_checked[p.index]:  # about to touch
+            g1, g2, s1, s2, _ = self._narrow_pairs[p.narrow]
+            spec = self.pairs[p.index]
+            try:
+                curv = contact_curvature(s1, (d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3)),
+                                         s2, (d.geom_xpos[g2], d.geom_xmat[g2].reshape(3, 3)), point, n)
+            except ValueError as exc:
+                raise ValueError(f"pair ({spec.body1!r}, {spec.body2!r}) at t = {float(d.time):.6g} s: {exc}; "
+                                 "the engines have no law for it yet (a line contact's footprint law is in "
+                                 "msf_contact only): use the built-in contact for this pair") from None
+            bad, tol = curvature_mismatch(spec.law.curvature, curv), curvature_tolerance(s1, s2)
+            if bad > tol:
+                raise ValueError(
+                    f"pair ({spec.body1!r}, {spec.body2!r}) at t = {float(d.time):.6g} s: the contact's curvature "
+                    f"{curv} differs from the law's {spec.law.curvature} by {bad:.3g} (> {tol}); the "
+                    "engines keep one law per pair: build the law with the curvature at the contact "
+                    "(engines._narrow.contact_curvature / msf_contact.curvature.relative_curvature)")
+            self._narrow_checked[p.index] = True
+        return det
 
     def _jacobian(self, body: int, point, out) -> np.ndarray:
         if int(self.model.body_weldid[body]) == 0:

@@ -1,0 +1,217 @@
+"""MSF on every shape through MuJoCo's own narrow phase (issue 13):
+ellipsoid, capsule, box with rounded edges, mesh and a sphere on a
+cylinder, against the reference solver or the analytic sphere with the same
+curvature; what is refused names both geoms."""
+
+import math
+
+import numpy as np
+import pytest
+import trimesh
+
+from msf_contact import Body, ContactPair, Curvature, make_law, preset, simulate_impact
+
+mujoco = pytest.importorskip("mujoco")
+pytestmark = pytest.mark.mujoco
+
+from engines._narrow import contact_curvature, make_shape  # noqa: E402
+from engines.base import PairSpec  # noqa: E402
+from engines.mujoco import run_until_separated  # noqa: E402
+from engines.mujoco.adapter import MujocoAdapter  # noqa: E402
+
+#: The issue's acceptance bound on COR and tau against the reference solver.
+ACCEPT_RTOL = 5e-3
+#: The same body with the contact's own sphere in place of the shape (a
+#: capsule's cap, a box's corner): the same arithmetic up to the narrow
+#: phase's point, float rounding only.
+SAME_BODY_RTOL = 1e-6
+#: An icosphere of 1,280 faces (edges 3 mm on R = 20 mm) against the
+#: analytic sphere, dropped in three orientations: measured |dCOR| <= 0.77 %,
+#: |dtau| <= 1e-5. The deepest vertex of a facet at the bottom changes during
+#: the contact and so does the contact point (by up to an edge, 3 mm), which
+#: puts a little of the impact into rotation; 1 % bounds it.
+MESH_COR_RTOL = 1e-2
+MESH_TAU_RTOL = 1e-4
+
+RUBBER, STEEL = preset("natural-rubber"), preset("steel")
+
+
+def scene(geoms: str, mass: float, inertia, z: float, *, euler="0 0 0", quat=None, v=1.0, dt=1e-3, asset="",
+          fixed: str = '<geom name="plate" type="plane" size="1 1 0.1"/>'):
+    """A free body (geoms ``geoms``, explicit inertia) at height z falling at
+    v onto a fixed geom (default a plane, geom "plate"), gravity off, the
+    pair's built-in contact excluded."""
+    I = [float(i) for i in np.broadcast_to(np.asarray(inertia, float), (3,))]
+    orient = f'euler="{euler}"' if quat is None else f'quat="{" ".join(repr(float(c)) for c in quat)}"'
+    xml = (f'<mujoco><option timestep="{dt}" gravity="0 0 0"><flag autoreset="disable"/></option>'
+           f"<asset>{asset}</asset><worldbody>{fixed}"
+           f'<body name="b" pos="0 0 {float(z)!r}" {orient}><freejoint/>'
+           f'<inertial pos="0 0 0" mass="{float(mass)!r}" diaginertia="{I[0]!r} {I[1]!r} {I[2]!r}"/>{geoms}</body>'
+           '</worldbody><contact><exclude body1="world" body2="b"/></contact></mujoco>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qvel[2] = -v
+    mujoco.mj_forward(model, data)
+    return model, data
+
+
+def drop(law, geoms, mass, inertia, z, *, geom="g", other="plate", steps=20000, **kw):
+    model, data = scene(geoms, mass, inertia, z, **kw)
+    adapter = MujocoAdapter(model, data, [PairSpec(geom, other, law)])
+    return run_until_separated(adapter, steps), adapter
+
+
+def rel(got, want):
+    return abs(got / want - 1)
+
+
+@pytest.mark.parametrize("axes", [(0.02, 0.02, 0.03), (0.03, 0.02, 0.02), (0.02, 0.03, 0.02)],
+                         ids=["long-axis", "short-axis-x", "short-axis-y"])
+def test_ellipsoid_on_each_principal_axis_matches_the_reference(axes):
+    """Semi-axes (30, 20, 20) mm, the drop axis along z: the law with the
+    curvature at the tip (engines._narrow.contact_curvature: 13.3 mm twice,
+    or 20 and 45 mm) in MuJoCo at 1 ms against the reference solver with that
+    curvature. Measured: COR +1.5e-5, tau -3.3e-6."""
+    a, b, c = axes
+    m = RUBBER.density * 4 / 3 * math.pi * a * b * c
+    inertia = (m / 5 * (b * b + c * c), m / 5 * (a * a + c * c), m / 5 * (a * a + b * b))
+    curv = contact_curvature(make_shape("ellipsoid", axes), (np.zeros(3), np.eye(3)), make_shape("plane", ()),
+                             (np.zeros(3), np.eye(3)), np.zeros(3), np.array([0.0, 0, 1]))
+    R = sorted((curv.R1a, curv.R1b))
+    assert R == pytest.approx(sorted([a * a / c, b * b / c]), rel=1e-12)  # b^2/a, c^2/a at the tip of a
+    law = make_law("msf", ContactPair(RUBBER, STEEL), curv)
+    rec, _ = drop(law, f'<geom name="g" type="ellipsoid" size="{a} {b} {c}" mass="0"/>', m, inertia, c + 1e-4)
+    ref = simulate_impact(law, Body(RUBBER, min(axes), m, inertia[0]), Body.half_space(STEEL), 1.0)
+    assert rel(rec.cor_n, ref.cor_n) < ACCEPT_RTOL and rel(rec.tau, ref.tau) < ACCEPT_RTOL
+
+
+def test_capsule_end_on_is_the_sphere_of_its_radius():
+    """The same body with a sphere of the capsule's radius in place of its
+    lower cap: COR, tau, x_max and F_max to 1e-6 (measured: bitwise)."""
+    r, h, m = 0.01, 0.05, 0.05
+    law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(r))
+    cap, _ = drop(law, f'<geom name="g" type="capsule" size="{r} {h}" mass="0"/>', m, 0.4 * m * r * r, h + r + 1e-4)
+    sph, _ = drop(law, f'<geom name="g" type="sphere" size="{r}" pos="0 0 {-h}" mass="0"/>', m, 0.4 * m * r * r,
+                  h + r + 1e-4)
+    for key in ("cor_n", "tau", "x_max", "F_max"):
+        assert rel(getattr(cap, key), getattr(sph, key)) < SAME_BODY_RTOL, key
+
+
+def _box_kinetic_energy(adapter):
+    m, d = adapter.model, adapter.data
+    v, w = d.qvel[:3], d.qvel[3:6]
+    return 0.5 * m.body_mass[1] * v @ v + 0.5 * w @ (m.body_inertia[1] * w)
+
+
+def test_box_corner_is_the_sphere_of_its_edge_radius():
+    """A steel cube (half-size 10 mm, edge radius 1 mm) on a steel plate at
+    0.2 m/s with its body diagonal vertical: MuJoCo reports the corner, its
+    curvature is the sphere of the edge radius; against the same body with
+    that sphere touching at the corner, and against the reference solver
+    (the diagonal through the centre of mass: no rotation)."""
+    h, rho, v = 0.01, 1e-3, 0.2
+    m = STEEL.density * (2 * h) ** 3
+    inertia = m * (2 * h) ** 2 / 6
+    law = make_law("msf", ContactPair(STEEL, STEEL), Curvature.sphere_on_plane(rho))
+    # the rotation by 180 deg about the bisector of (1, 1, 1) and -z takes the diagonal (1, 1, 1) to -z
+    axis = np.array([1.0, 1.0, 1.0]) / math.sqrt(3) - np.array([0, 0, 1.0])
+    quat = np.concatenate([[0.0], axis / np.linalg.norm(axis)])  # (w, x, y, z)
+    z = h * math.sqrt(3) + 1e-6
+    box, ad = drop(law, f'<geom name="g" type="box" size="{h} {h} {h}" mass="0"/>', m, inertia, z, quat=quat,
+                   v=v, dt=1e-4)
+    rows = ad.records
+    assert len(rows) == 1  # one corner touched
+    centre = (h * math.sqrt(3) - rho) / math.sqrt(3)
+    sph, _ = drop(law, f'<geom name="g" type="sphere" size="{rho}" pos="{centre} {centre} {centre}" mass="0"/>',
+                  m, inertia, z, quat=quat, v=v, dt=1e-4)
+    ref = simulate_impact(law, Body(STEEL, rho, m, 0.4 * m * rho * rho), Body.half_space(STEEL), v)
+    for key in ("cor_n", "tau", "x_max", "F_max"):
+        assert rel(getattr(box, key), getattr(sph, key)) < SAME_BODY_RTOL, key
+    assert rel(box.cor_n, ref.cor_n) < ACCEPT_RTOL and rel(box.tau, ref.tau) < ACCEPT_RTOL
+
+
+def _box_bounce(euler, dt):
+    """Kinetic energy before and after a steel cube (half-size 10 mm, edge
+    radius 1 mm) bounces at 0.2 m/s on a steel plate, and the records."""
+    h, rho, v = 0.01, 1e-3, 0.2
+    m = STEEL.density * (2 * h) ** 3
+    law = make_law("msf", ContactPair(STEEL, STEEL), Curvature.sphere_on_plane(rho))
+    z = h * (math.sqrt(2) if euler != "0 0 0" else 1.0) + 1e-6
+    model, data = scene(f'<geom name="g" type="box" size="{h} {h} {h}" mass="0"/>', m, m * (2 * h) ** 2 / 6, z,
+                        euler=euler, v=v, dt=dt)
+    ad = MujocoAdapter(model, data, [PairSpec("g", "plate", law)])
+    E0 = _box_kinetic_energy(ad)
+    ad.step(int(round(0.03 / dt)))
+    assert data.qvel[2] > 0  # bounced
+    return E0, _box_kinetic_energy(ad), ad.records
+
+
+def test_box_on_an_edge_gains_no_energy():
+    """On an edge MuJoCo reports 2 corners, each a slot with the corner's
+    sphere: measured E_out/E_in = 0.929 at dt = 1e-4 s."""
+    E0, E1, recs = _box_bounce("45 0 0", 1e-4)
+    assert len(recs) == 2 and E1 < E0
+
+
+@pytest.mark.xfail(strict=True, reason="four stiff corner contacts of one body in one step need the contacts solved "
+                   "together (issue 10): measured E_out/E_in = 1.27 at dt = 1e-4 s, 1.006 at 1e-5 s")
+def test_box_on_a_face_gains_no_energy():
+    E0, E1, recs = _box_bounce("0 0 0", 1e-4)
+    assert len(recs) == 4 and E1 < E0
+
+
+def test_mesh_icosphere_against_the_analytic_sphere():
+    R = 0.02
+    m = RUBBER.density * 4 / 3 * math.pi * R**3
+    ico = trimesh.creation.icosphere(subdivisions=3, radius=R)
+    asset = (f'<mesh name="ico" vertex="{" ".join(repr(float(c)) for c in ico.vertices.ravel())}" '
+             f'face="{" ".join(str(int(f)) for f in ico.faces.ravel())}"/>')
+    law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(R))
+    for euler in ("0 0 0", "10 20 30", "33 7 51"):
+        mesh, _ = drop(law, '<geom name="g" type="mesh" mesh="ico" mass="0"/>', m, 0.4 * m * R * R, R + 1e-4,
+                       euler=euler, asset=asset)
+        sph, _ = drop(law, f'<geom name="g" type="sphere" size="{R}" mass="0"/>', m, 0.4 * m * R * R, R + 1e-4,
+                      euler=euler)
+        assert rel(mesh.cor_n, sph.cor_n) < MESH_COR_RTOL and rel(mesh.tau, sph.tau) < MESH_TAU_RTOL
+
+
+def test_sphere_on_a_cylinder_side_matches_the_reference():
+    """A sphere (R 10 mm) dropped on a fixed horizontal cylinder (r 20 mm):
+    curvatures 1/R, 1/R and 1/r, 0, an elliptic contact; MuJoCo's sphere-
+    cylinder point against the reference solver with that curvature."""
+    R, r = 0.01, 0.02
+    m = RUBBER.density * 4 / 3 * math.pi * R**3
+    cyl = f'<geom name="cyl" type="cylinder" size="{r} 0.1" euler="0 90 0"/>'
+    curv = Curvature(R, R, r, math.inf)
+    law = make_law("msf", ContactPair(RUBBER, STEEL), curv)
+    rec, _ = drop(law, f'<geom name="g" type="sphere" size="{R}" mass="0"/>', m, 0.4 * m * R * R, r + R + 1e-4,
+                  other="cyl", fixed=cyl)
+    ref = simulate_impact(law, Body.sphere(RUBBER, R, m), Body.half_space(STEEL), 1.0)
+    assert rel(rec.cor_n, ref.cor_n) < ACCEPT_RTOL and rel(rec.tau, ref.tau) < ACCEPT_RTOL
+
+
+def test_a_law_for_another_curvature_is_refused_naming_both_geoms():
+    a, b, c = 0.03, 0.02, 0.02
+    m = RUBBER.density * 4 / 3 * math.pi * a * b * c
+    law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(0.02))
+    with pytest.raises(ValueError, match=r"pair \('g', 'plate'\).*curvature.*build the law"):
+        drop(law, f'<geom name="g" type="ellipsoid" size="{a} {b} {c}" mass="0"/>', m, m * 1e-4, c + 1e-4)
+
+
+def test_a_cylinder_lying_flat_is_refused_naming_both_geoms():
+    """Its side on a plane is a line contact: msf_contact has the law
+    (geometry.SideFootprint), the engines not yet; the message says so."""
+    r, h = 0.01, 0.03
+    m = RUBBER.density * math.pi * r * r * 2 * h
+    law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(r))
+    with pytest.raises(ValueError, match=r"pair \('g', 'plate'\).*line contact.*built-in contact"):
+        drop(law, f'<geom name="g" type="cylinder" size="{r} {h}" mass="0"/>', m, m * 1e-4, r + 1e-4,
+             euler="0 90 0")
+
+
+def test_a_height_field_is_refused_naming_both_geoms():
+    law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(0.01))
+    fixed = '<geom name="hf" type="hfield" hfield="hf"/>'
+    with pytest.raises(ValueError, match=r"pair 0 \('g', 'hf'\): geom 'hf' is a hfield.*sphere, plane"):
+        drop(law, '<geom name="g" type="sphere" size="0.01" mass="0"/>', 0.01, 1e-7, 0.02, other="hf", fixed=fixed,
+             asset='<hfield name="hf" nrow="2" ncol="2" size="1 1 0.1 0.1"/>')
