@@ -108,3 +108,20 @@ def as_array(a, shape) -> np.ndarray:
     """Float array of the given trailing shape (leading n)."""
     return np.asarray(a, dtype=float).reshape((-1,) + tuple(shape))
 
+
+
+#: Work bound of one isolated engine impact (``run_impact`` of each engine):
+#: engine steps up to the end of the contact. The default dt = 1e-4 s needs
+#: ~10-1,000; at ~10 us a step the bound is ~10 s of stepping. Refused
+#: before the first step, so that --dt 1e-12 or --gap 1e9 cannot hang.
+MAX_IMPACT_STEPS = 1_000_000
+
+
+def check_step_budget(steps: float, dt: float, gap: float, why: str) -> int:
+    """Refuse an impact run whose step count ``steps`` (dt [s], gap [m] and
+    ``why``, the time it has to cover) exceeds :data:`MAX_IMPACT_STEPS`."""
+    if not steps <= MAX_IMPACT_STEPS:
+        raise ValueError(f"dt = {dt!r} s with gap = {gap!r} m needs {steps:.3g} engine steps ({why}), above the "
+                         f"work bound MAX_IMPACT_STEPS = {MAX_IMPACT_STEPS:,} (engines.contract): raise dt or "
+                         "lower gap")
+    return int(steps)

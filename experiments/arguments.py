@@ -18,7 +18,8 @@ import json
 import math
 from dataclasses import replace
 
-from msf_contact._validate import check_finite, check_positive, check_range
+from msf_contact._validate import (DENSITY_MAX, DENSITY_MIN, E_MAX, E_MIN, check_between, check_finite,
+                                   check_positive, check_range)
 from msf_contact.materials import Material, preset, preset_names
 from msf_contact.record import _clean
 
@@ -122,6 +123,8 @@ def material(args, role: str, default: str | None) -> Material:
              "density": f"--{role}-density" if role == "plate" else "--density"}
     if values["E_storage"] is not None:
         check_positive(flags["E_storage"], values["E_storage"], unit="Pa")
+        check_between(flags["E_storage"], values["E_storage"], E_MIN, E_MAX, "Pa",
+                      "bounds of plausibility, msf_contact._validate.E_MIN/E_MAX")
     if values["tan_delta"] is not None:
         check_finite(flags["tan_delta"], values["tan_delta"])
         if values["tan_delta"] < 0:
@@ -130,20 +133,24 @@ def material(args, role: str, default: str | None) -> Material:
         check_range(flags["nu"], values["nu"], -1.0, 0.5, lo_open=True, hi_open=True)
     if values["density"] is not None:
         check_positive(flags["density"], values["density"], unit="kg/m^3")
+        check_between(flags["density"], values["density"], DENSITY_MIN, DENSITY_MAX, "kg/m^3",
+                      "bounds of plausibility, msf_contact._validate.DENSITY_MIN/MAX")
     name = getattr(args, role, None) or default
     given = {k: v for k, v in values.items() if v is not None}
+    # labelled by the user's words: the preset (if any) and the flags as given
+    words = " ".join(f"{flags[k]} {v:g}" for k, v in given.items())
     if name is None:
         if not given:
             return Material.rigid_body("rigid plate")
         if "E_storage" not in given:
             raise ValueError(f"{', '.join(flags[k] for k in given)} given without --{role}-E or --{role} NAME")
-        return Material(role, given.pop("E_storage"), **{**PLATE_BASE, **given}, source="command line")
+        return Material(words, given.pop("E_storage"), **{**PLATE_BASE, **given}, source="command line")
     base = preset(name)
     if not given:
         return base
     if base.rigid and "E_storage" not in given:
         raise ValueError(f"--{role} rigid has no finite modulus: {', '.join(flags[k] for k in given)} need --{role}-E")
-    return replace(base, name=f"{base.name} (modified)", source="command line", **given)
+    return replace(base, name=f"{base.name} {words}", source=f"command line, from the preset {base.name!r}", **given)
 
 
 def material_dict(mat: Material) -> dict:

@@ -99,6 +99,8 @@ def cmd_impact(args) -> int:
         print(format_table([(k, d.get(k), u) for k, u in IMPACT_ROWS], _impact_title(d)))
         for reason in d.get("outside_validity") or []:
             print(f"  outside validity: {reason}")
+    for reason in d.get("outside_validity") or []:  # also on stderr, so --json users see it
+        print(f"{PROG}: warning: outside validity: {_one_line(reason)}", file=sys.stderr)
     return 0
 
 
@@ -140,6 +142,8 @@ def cmd_identify(args) -> int:
                       "plate": material_dict(plate)},
            "printed": asdict(printed), "numerical": asdict(numerical)}
     if args.json:
+        out["use"] = "numerical" if (abs(numerical.residual_tau) <= IDENTIFY_MATCH
+                                     and abs(numerical.residual_cor) <= IDENTIFY_MATCH) else None
         print(to_json(out))
         return 0
     rows = [
@@ -161,7 +165,28 @@ def cmd_identify(args) -> int:
     if not plate.rigid:
         print(f"  ((96)-(97): effective values of the pair; numerical: the ball's, with effective (9), (91) "
               f"E' = {fmt(numerical.E_storage)} Pa, tg(beta) = {fmt(numerical.tan_delta)})")
+    print(identify_advice(printed, numerical))
     return 0
+
+
+#: |model - measured| of the numerical inverse below which it reproduces the
+#: measurement (relative tau, absolute k_x); its own tolerances are ~1e-6.
+IDENTIFY_MATCH = 1e-4
+
+
+def identify_advice(printed, numerical) -> str:
+    """Which answer of ``identify`` to use and why (issue 12)."""
+    good = (abs(numerical.residual_tau) <= IDENTIFY_MATCH and abs(numerical.residual_cor) <= IDENTIFY_MATCH)
+    r_E = printed.E_storage / numerical.ball_E_storage
+    r_loss = printed.E_loss / numerical.ball_E_loss if numerical.ball_E_loss else float("nan")
+    if good:
+        return (f"  use the numerical column: with these moduli the reference solver reproduces tau_x and k_x "
+                f"(residuals above). The (96)-(97) column is the paper's closed-form inverse, kept for "
+                f"comparison: it rests on (89), which overstates the model's own restitution (docs/errata.md), "
+                f"so its E' is {r_E:.3g} x and its E'' {r_loss:.3g} x the numerical ones")
+    return ("  neither column reproduces the measurement: the numerical inverse did not match tau_x and k_x "
+            f"within {IDENTIFY_MATCH:g} (residuals above); the measurement may lie outside what the model gives "
+            "(tg(beta) <= 1/3, (100))")
 
 
 register_command("impact", "one isolated impact of a ball on a plate", add_impact_arguments, cmd_impact)
@@ -182,6 +207,16 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*a, **kw)
         self._negative_number_matcher = self._NUMBER
 
+    def error(self, message):
+        """One line on stderr, exit code 2 (argparse prints its whole usage
+        first: a 21-line dump for one bad value). ``--help`` shows the usage."""
+        print(f"{self.prog}: error: {_one_line(message)} (see {self.prog} --help)", file=sys.stderr)
+        raise SystemExit(EXIT_BAD_INPUT)
+
+
+def _one_line(text) -> str:
+    return " ".join(str(text).split())
+
 
 def build_parser() -> argparse.ArgumentParser:
     parser = _Parser(
@@ -198,17 +233,23 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of the ``msf-contact`` console script. Returns 0; refused
-    input raises SystemExit(2) with ``msf-contact: error: ...`` on stderr."""
+    input raises SystemExit(2) (EXIT_BAD_INPUT) and a failed run SystemExit(1)
+    (EXIT_FAILURE), each with one line ``msf-contact: error: ...`` on stderr
+    and no usage dump or traceback."""
     args = build_parser().parse_args(argv)
     with warnings.catch_warnings():
         _install_warning_printer()
         try:
             return args._run(args)
-        except ValueError as exc:
-            print(f"{PROG}: error: {exc}", file=sys.stderr)
+        except ValueError as exc:  # refused input (ConfigError is one)
+            print(f"{PROG}: error: {_one_line(exc)}", file=sys.stderr)
             raise SystemExit(EXIT_BAD_INPUT) from None
-        except RuntimeError as exc:
-            print(f"{PROG}: error: {exc}", file=sys.stderr)
+        except RuntimeError as exc:  # a run that failed (no convergence, a contact that never ended)
+            print(f"{PROG}: error: {_one_line(exc)}", file=sys.stderr)
+            raise SystemExit(EXIT_FAILURE) from None
+        except (ArithmeticError, MemoryError, OSError) as exc:  # no traceback reaches a user
+            print(f"{PROG}: error: {type(exc).__name__}: {_one_line(exc)} (a run failure; please report it with "
+                  "the command line)", file=sys.stderr)
             raise SystemExit(EXIT_FAILURE) from None
 
 

@@ -151,6 +151,9 @@ def build_material(sec: dict, path: str, role: str, default: str | None) -> Mate
     from dataclasses import replace
 
     try:
-        return replace(base, name=f"{base.name} (modified)" if name else role, **over)
+        # labelled by the user's words: the preset (if any) and the keys as given
+        words = ", ".join(f"{role}.{k} = {sec[k]:g}" for k in ("E", "tan_delta", "nu", "density")
+                          if sec.get(k) is not None)
+        return replace(base, name=f"{base.name} ({words})" if name else words, **over)
     except ValueError as exc:
         raise _fail(path, role, str(exc)) from None

@@ -20,12 +20,14 @@ from typing import Any, Callable
 
 from msf_contact import closed_forms as cf
 from msf_contact._normal import SEPARATIONS
-from msf_contact._validate import ValidityWarning, check_finite, check_positive, check_range, check_tan_delta
+from msf_contact._validate import (RADIUS_MAX, RADIUS_MIN, ValidityWarning, check_between, check_finite, check_positive,
+                                   check_range, check_tan_delta)
 from msf_contact.geometry import KP_MODES, Curvature, peak_pressure_closed
-from msf_contact.laws import LAWS, OMEGA_MODES, ForceLaw, make_law
+from msf_contact.laws import HC_COR_MIN, HC_DAMPINGS, LAWS, OMEGA_MODES, ForceLaw, make_law
 from msf_contact.materials import MODULUS_CONVENTIONS, ContactPair
 from msf_contact.record import ImpactRecord
-from msf_contact.solver import TANGENTIAL_MODES, Body, check_impact_inputs, reduced_mass, simulate_impact
+from msf_contact.solver import (TANGENTIAL_MODES, Body, check_impact_inputs, outside_validity, reduced_mass,
+                                simulate_impact)
 
 from . import engine_cli
 from .arguments import (
@@ -80,6 +82,7 @@ def register_engine(name: str, run, help: str = "", add_arguments=None) -> None:
 #: are refused rather than silently ignored.
 LAW_ONLY_FLAGS = {
     "kp_mode": "msf", "omega": "msf", "A": "kuwabara-kono", "hc_cor": "hunt-crossley",
+    "hc_damping": "hunt-crossley",
     "k": "spring-dashpot", "c": "spring-dashpot",
 }
 
@@ -88,7 +91,11 @@ def add_impact_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument("--engine", choices=sorted(ENGINES), default="reference",
                    help="what computes the impact (default reference: the reference solver; closed-form: "
                         "the paper's (87), (89), (90), (95) for a sphere on a half-space)")
-    p.add_argument("--law", choices=list(LAWS), default="msf", help="force law (default msf)")
+    p.add_argument("--law", choices=list(LAWS), default="msf",
+                   help="force law (default msf). Every law uses the pair's effective modulus of --convention: "
+                        "by default msf, the paper's (9) without 1 - nu^2, so --law hertz is softer than "
+                        "textbook Hertz (durations (1 - nu^2)^(-2/5): 3.8 %% longer at nu = 0.3, 11.6 %% at "
+                        "0.49); --convention hertz gives the textbook E* = 1/((1 - nu1^2)/E1 + (1 - nu2^2)/E2)")
     p.add_argument("--radius", type=number, default=DEFAULT_RADIUS, metavar="R",
                    help=f"ball radius [m] (default {DEFAULT_RADIUS})")
     p.add_argument("--mass", type=number, metavar="KG", help="ball mass [kg] (default: from the density)")
@@ -96,7 +103,10 @@ def add_impact_arguments(p: argparse.ArgumentParser) -> None:
     add_material_arguments(p, "plate", "omitted (with no --plate-* flag): a rigid plate. "
                                         "--plate-E alone: nu 0.3, density 7850, tg(beta) 0")
     p.add_argument("--convention", choices=MODULUS_CONVENTIONS, default="msf",
-                   help="effective modulus: msf = (9) (default), hertz = E* with (1 - nu^2)")
+                   help="effective modulus of every law: msf = (9), 1/E = 1/E1 + 1/E2 without 1 - nu^2 "
+                        "(default, the paper's); hertz = textbook E* with (1 - nu^2), stiffer: the msf "
+                        "convention's durations are (1 - nu^2)^(-2/5) times the textbook ones, 3.8 %% longer "
+                        "at nu = 0.3, 11.6 %% at 0.49")
     p.add_argument("--speed", type=number, default=DEFAULT_SPEED, metavar="V",
                    help=f"impact speed [m/s] (default {DEFAULT_SPEED})")
     p.add_argument("--angle", type=number, default=90.0, metavar="DEG",
@@ -118,7 +128,13 @@ def add_impact_arguments(p: argparse.ArgumentParser) -> None:
                    help="kuwabara-kono dissipative constant A [s]; default (99) with k_p = 1, nu of the softer "
                         "body and tau from (95) as printed (k_p = 1) with k_x from (89)")
     p.add_argument("--hc-cor", dest="hc_cor", type=number, default=None, metavar="E",
-                   help="hunt-crossley target restitution in (0, 1]; default (89) of the pair's tg(beta)")
+                   help="hunt-crossley target restitution in (0, 1]; default (89) of the pair's tg(beta). "
+                        "With the default --hc-damping flores it is the recipe's target, not the COR the run "
+                        "returns (0.8 gives 0.7885); --hc-damping exact returns it")
+    p.add_argument("--hc-damping", dest="hc_damping", choices=HC_DAMPINGS, default=None,
+                   help="hunt-crossley damping recipe chi = alpha/v0: flores (default, Flores et al. 2011, "
+                        "alpha = 8 (1 - e)/(5 e)) or exact (alpha (1 + e) = ln((1 + alpha)/(1 - alpha e)): "
+                        "the run returns COR = --hc-cor)")
     p.add_argument("--k", dest="k", type=number, default=None, metavar="N_M",
                    help="spring-dashpot stiffness [N/m]; default: the law's own (84) at the onset speed")
     p.add_argument("--c", dest="c", type=number, default=None, metavar="NS_M",
@@ -153,6 +169,7 @@ def _law_options(args, pair: ContactPair, radius: float, mass: float, v_n: float
         opts["A"] = args.A if args.A is not None else default_A(pair, radius, mass, v_n)
     elif args.law == "hunt-crossley":
         opts["cor"] = args.hc_cor if args.hc_cor is not None else default_hc_cor(pair)
+        opts["damping"] = args.hc_damping or "flores"
     elif args.law == "spring-dashpot":
         opts.update(k=args.k, c=args.c)
     return opts
@@ -180,7 +197,9 @@ def default_hc_cor(pair: ContactPair) -> float:
 
 def build_impact(args) -> ImpactSetup:
     """Validate everything and construct the law and bodies (no solving)."""
-    radius = check_positive("--radius", args.radius, unit="m").item()
+    check_positive("--radius", args.radius, unit="m")
+    radius = check_between("--radius", args.radius, RADIUS_MIN, RADIUS_MAX, "m",
+                           "bounds of plausibility, msf_contact._validate").item()
     if args.mass is not None:
         check_positive("--mass", args.mass, unit="kg")
         if args.ball_density is not None:
@@ -195,7 +214,7 @@ def build_impact(args) -> ImpactSetup:
     if args.A is not None and args.A < 0:
         raise ValueError(f"--A = {args.A!r} s must be >= 0")
     if args.hc_cor is not None:
-        check_range("--hc-cor", args.hc_cor, 0.0, 1.0, lo_open=True)
+        check_range("--hc-cor", args.hc_cor, HC_COR_MIN, 1.0)
     positive_arg(args, "k", "N/m")
     if args.c is not None and args.c < 0:
         raise ValueError(f"--c = {args.c!r} N s/m must be >= 0")
@@ -205,7 +224,10 @@ def build_impact(args) -> ImpactSetup:
     pair = ContactPair(ball_mat, plate_mat, convention=args.convention)
     check_tan_delta("tg(beta) of the pair ((91), from --ball-tan-delta, --plate-tan-delta or the presets)",
                     pair.moduli().tan_delta, strict=args.strict)
-    ball = Body.sphere(ball_mat, radius, args.mass)
+    try:
+        ball = Body.sphere(ball_mat, radius, args.mass)
+    except ValueError as exc:  # the mean density bound: say which flags set it
+        raise ValueError(f"--mass/--density and --radius: {exc}") from None
     plate = Body.half_space(plate_mat)
     m = reduced_mass(ball.mass, plate.mass)
     v_n = speed * math.sin(math.radians(args.angle))
@@ -278,6 +300,7 @@ def run_closed_form(setup: ImpactSetup) -> dict:
                          "use --engine reference")
     m = reduced_mass(setup.ball.mass, setup.plate.mass)
     v_n = setup.speed * math.sin(math.radians(setup.angle_deg))
+    law.onset_reference([v_n], [m])  # refuses what the reference solver refuses (e.g. no damped oscillation)
     mod, R = law.moduli, law.geom.R
     E, td = mod.E, mod.tan_delta
     extra: dict[str, Any] = {}
@@ -295,6 +318,9 @@ def run_closed_form(setup: ImpactSetup) -> dict:
             raise ValueError("tg(beta) = 0: (95) is 0/0 at k_x = 1; use --law hertz for the elastic closed forms")
         k_p = float(cf.kp_for_mode(law.kp_mode, m, v_n, E, td, R))
         cor = float(cf.cor_89(td))
+        if not cor > 0:
+            raise ValueError(f"tg(beta) = {td:.6g}: (89) gives k_x = {cor:.6g} <= 0 (it needs tg(beta) < pi/3; the "
+                             "model's validity (100) is tg(beta) <= 1/3); use --engine reference")
         x_m = float(cf.x_max_90(m, v_n, E, td, R, k_p))
         tau = float(cf.tau_95_as_printed(m, v_n, E, R, k_p, cor))
         omega = math.pi / tau  # (87)
@@ -316,6 +342,7 @@ def run_closed_form(setup: ImpactSetup) -> dict:
         spin_in=setup.spin, spin_out=0.0 if normal else None, f_min=None, f_max=None,
         omega_x=omega, omega_y=None, ended_by=None, law=law.name, engine="closed-form", dt=None,
         parameters=law.parameters(), inputs=_impact_inputs(setup, m),
+        outside_validity=outside_validity(law, x_m, Pc),
     )
     d = rec.to_dict()
     d["closed_forms"] = {"k_p": k_p, "tan_delta": td, **extra}

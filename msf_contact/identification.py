@@ -36,7 +36,7 @@ import numpy as np
 from scipy.optimize import brentq
 
 from . import closed_forms as cf
-from ._validate import TAN_DELTA_MAX, check_choice, check_finite, check_positive, check_tan_delta
+from ._validate import E_MAX, E_MIN, TAN_DELTA_MAX, check_choice, check_finite, check_positive, check_tan_delta
 from .geometry import KP_MODES, Curvature
 from .laws import MSFLaw
 from .materials import ContactPair, Material
@@ -99,6 +99,19 @@ class ImpactMeasurement:
                 f"cor = {self.cor!r} is outside (0, 1): a restitution of a damped impact; "
                 "cor = 1 is elastic (tg(beta) = 0) and (96) is singular"
             )
+        # the modulus the measurement implies (elastic Hertz inversion of tau) within the plausible range
+        x_m = self.tau * self.speed / cf.HERTZ_TAU_FACTOR
+        log_E = (math.log(15.0 / 16.0 * self.mass) + 2.0 * math.log(self.speed) - 0.5 * math.log(self.radius)
+                 - 2.5 * math.log(x_m)) if x_m > 0 else math.inf
+        E = math.exp(min(log_E, 709.0))  # beyond e^709 a float overflows; the bound below refuses it anyway
+        if not E_MIN <= E <= E_MAX:
+            raise ValueError(
+                f"tau = {self.tau!r} s with speed = {self.speed!r} m/s, radius = {self.radius!r} m and mass = "
+                f"{self.mass!r} kg implies E' ~ {E:.3g} Pa (elastic Hertz inversion), outside [{E_MIN:g}, "
+                f"{E_MAX:g}] Pa (bounds of plausibility, msf_contact._validate.E_MIN/E_MAX)")
+        if not x_m < 2.0 * self.radius:
+            raise ValueError(f"tau = {self.tau!r} s at speed = {self.speed!r} m/s implies an approach of ~{x_m:.3g} m, "
+                             f"beyond the ball's diameter 2R = {2 * self.radius:.3g} m")
 
 
 @dataclass(frozen=True)
@@ -198,6 +211,11 @@ def _ball_from_effective(E: float, tan_delta: float, plate: Material) -> tuple[f
     return E_b, E_loss_b / E_b
 
 
+#: A fixed omega_x of the numerical inverse within these factors of the
+#: impact's own frequency pi/tau (three decades either side).
+OMEGA_SPAN_MIN, OMEGA_SPAN_MAX = 1e-3, 1e3
+
+
 def identify_numerical(
     meas: ImpactMeasurement,
     *,
@@ -223,6 +241,12 @@ def identify_numerical(
     else:
         check_positive("omega", omega, unit="rad/s")
         omega_x = float(omega)
+        w_own = math.pi / meas.tau
+        if not OMEGA_SPAN_MIN * w_own <= omega_x <= OMEGA_SPAN_MAX * w_own:
+            raise ValueError(f"omega = {omega_x!r} rad/s is outside [{OMEGA_SPAN_MIN:g}, {OMEGA_SPAN_MAX:g}] x pi/tau = "
+                             f"[{OMEGA_SPAN_MIN * w_own:.4g}, {OMEGA_SPAN_MAX * w_own:.4g}] rad/s, the impact's own "
+                             "frequency (46), (87): a fixed omega_x this far from it makes E'' = tg E' of the "
+                             "collision meaningless and the inverse's damping extreme")
     plate = plate if plate is not None else Material.rigid_body()
     m, V, R = meas.mass, meas.speed, meas.radius
     curv = Curvature.sphere_on_plane(R)

@@ -495,6 +495,11 @@ class KuwabaraKonoLaw(_HertzFamily):
 #: below e (0.8 gives 0.7885 with force-zero separation); ``exact`` the chi
 #: whose impact rebounds with e itself (:func:`hunt_crossley_alpha`).
 HC_DAMPINGS = ("flores", "exact")
+#: Smallest target restitution of the Hunt-Crossley law: alpha ~ 1/e, so the
+#: damping force at onset is ~1/e times the elastic one; below 1e-3 the
+#: impact is a plastic capture the law is not meant for, and the numbers
+#: (alpha up to 1e300 for e = 1e-300) overflow.
+HC_COR_MIN = 1e-3
 #: brentq tolerance on alpha = chi v0 of the exact recipe (relative).
 HC_ALPHA_RTOL = 1e-14
 
@@ -552,7 +557,7 @@ class HuntCrossleyLaw(_HertzFamily):
 
     def __init__(self, pair, curvature, *, cor, damping="flores", separation="force-zero", mu=None):
         super().__init__(pair, curvature, separation=separation, mu=mu)
-        check_range("cor (Hunt-Crossley target restitution)", cor, 0.0, 1.0, lo_open=True)
+        check_range("cor (Hunt-Crossley target restitution)", cor, HC_COR_MIN, 1.0)
         check_choice("damping", damping, HC_DAMPINGS)
         self.cor = float(cor)
         self.damping = damping

@@ -169,6 +169,15 @@ def check_impact_inputs(law: ForceLaw, body1: Body, body2: Body, speed, angle_de
     if speed >= c:
         raise ValueError(f"speed = {speed!r} m/s is at or above the sound speed sqrt(E'/rho) = {c:.4g} m/s "
                          "of the softer body (the paper's model needs a subsonic impact, section 1)")
+    a = math.radians(angle_deg)
+    vn0 = speed * math.sin(a)
+    with np.errstate(over="ignore", divide="ignore"):  # an infinite scale is refused just below
+        xs = float(np.atleast_1d(law.hertz_scale(vn0, reduced_mass(body1.mass, body2.mass)))[0])
+    R_min = min(body1.radius, body2.radius)
+    if not xs < 2.0 * R_min:
+        raise ValueError(f"speed = {speed!r} m/s: the elastic approach of this law, {xs:.4g} m, reaches 2R = "
+                         f"{2.0 * R_min:.4g} m, the ball's diameter (the stiffness E' or k is too low for the "
+                         "speed and mass)")
     if abs(spin) * body1.radius >= c:
         raise ValueError(f"spin = {spin!r} rad/s gives a surface speed |spin| R = {abs(spin) * body1.radius:.6g} m/s at "
                          f"or above the sound speed sqrt(E'/rho) = {c:.4g} m/s of the softer body (|spin| < "

@@ -218,7 +218,7 @@ BAD_IMPACT = [
     (["--mu", "-0.2"], ["--mu", "-0.2", "> 0"]),
     (["--A", "1e-6"], ["--A", "kuwabara-kono", "msf"]),
     (["--law", "hertz", "--kp-mode", "msf"], ["--kp-mode", "msf"]),
-    (["--law", "hunt-crossley", "--hc-cor", "1.5"], ["--hc-cor", "1.5", "(0, 1]"]),
+    (["--law", "hunt-crossley", "--hc-cor", "1.5"], ["--hc-cor", "1.5", "[0.001, 1]"]),
     (["--law", "kuwabara-kono", "--A", "-1"], ["--A", "-1.0", ">= 0"]),
     (["--plate-tan-delta", "0.1"], ["--plate-tan-delta", "--plate-E"]),
     (["--mass", "0.1", "--density", "1000"], ["--mass", "--density"]),

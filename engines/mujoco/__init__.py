@@ -22,6 +22,7 @@ from msf_contact.record import ImpactRecord
 from msf_contact.solver import TANGENTIAL_MODES, Body, check_impact_inputs, reduced_mass
 
 from ..base import PairSpec
+from ..contract import check_step_budget
 from . import scenes
 from .adapter import MujocoAdapter, installed
 from .builtin import builtin_impact
@@ -88,12 +89,13 @@ def run_impact(
     else:
         model, data = scenes.two_spheres(body1, body2, speed, angle_deg, spin, gap=gap, dt=dt,
                                          integrator=integrator, gravity=gravity)
-    adapter = MujocoAdapter(model, data, [PairSpec("ball", _other(model), law, tangential)])
-    adapter.manager.history = True  # the record carries the step-averaged force-time curve
     m = reduced_mass(body1.mass, body2.mass)
     _, vn0 = scenes.initial_velocity(speed, angle_deg)
     tau_h = float(cf.hertz_tau(m, vn0, law.moduli.E, law.geom.R))
-    max_steps = int(math.ceil((gap / vn0 + MAX_DURATIONS * tau_h) / dt)) + 10
+    max_steps = check_step_budget(math.ceil((gap / vn0 + MAX_DURATIONS * tau_h) / dt) + 10, dt, gap,
+                                  f"gap/V_n + {MAX_DURATIONS:g} Hertz durations")
+    adapter = MujocoAdapter(model, data, [PairSpec("ball", _other(model), law, tangential)])
+    adapter.manager.history = True  # the record carries the step-averaged force-time curve
     rec = run_until_separated(adapter, max_steps)
     inputs = dict(rec.inputs or {})
     inputs.update(speed=speed, angle_deg=angle_deg, spin=spin, tangential=tangential, gap=gap, gravity=gravity,

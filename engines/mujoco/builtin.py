@@ -39,6 +39,7 @@ from msf_contact._validate import check_choice, check_finite
 from msf_contact.record import ImpactRecord
 from msf_contact.solver import Body, reduced_mass
 
+from ..contract import check_step_budget
 from . import scenes
 
 #: MuJoCo's default impedance (solimp) when none is given.
@@ -132,7 +133,8 @@ def builtin_impact(
         mujoco.mj_objectVelocity(model, data, mujoco.mjtObj.mjOBJ_BODY, b, res, 0)
         return res
 
-    max_steps = int(math.ceil((gap / vn0 + MAX_DURATIONS * _duration_estimate(solref)) / dt)) + 1000
+    max_steps = check_step_budget(math.ceil((gap / vn0 + MAX_DURATIONS * _duration_estimate(solref)) / dt) + 1000,
+                                  dt, gap, f"gap/V_n + {MAX_DURATIONS:g} durations of the solref")
     forces, frictions, depths, times = [], [], [], []
     started = ended = False
     res6 = np.zeros(6)

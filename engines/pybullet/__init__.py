@@ -32,7 +32,7 @@ def _import_pybullet_quietly():
 
 _import_pybullet_quietly()
 
-from engines.contract import PairSpec
+from engines.contract import PairSpec, check_step_budget
 from msf_contact.laws import ForceLaw
 from msf_contact.record import ImpactRecord
 from msf_contact.solver import TANGENTIAL_MODES, Body, check_impact_inputs, reduced_mass
@@ -116,10 +116,11 @@ def run_impact(law: ForceLaw, body1: Body, body2: Body, speed: float, angle_deg:
     if builtin is not None:
         return run_builtin_impact(body1, body2, speed, angle_deg, spin, dt=dt, gap=gap, gravity=gravity,
                                   builtin=builtin, law=law)
+    limit = check_step_budget(math.ceil(_max_time(law, body1, body2, speed, angle_deg, dt, gap) / dt), dt, gap,
+                              "gap/V_n and the contact's duration bound")
     scene = _scene(body1, body2, speed, angle_deg, spin, dt, gap, gravity)
     with scene, PybulletAdapter(scene.client, [PairSpec(scene.body1, scene.body2, law, tangential)]) as ad:
         ad.manager.history = True  # the record carries the step-averaged force-time curve
-        limit = int(math.ceil(_max_time(law, body1, body2, speed, angle_deg, dt, gap) / dt))
         for _ in range(limit):
             ad.step()
             if ad.records:
@@ -142,10 +143,12 @@ def run_builtin_impact(body1: Body, body2: Body, speed: float, angle_deg: float 
     """The same isolated impact with pybullet's own contact (:mod:`.builtin`)."""
     _check(law, body1, body2, speed, angle_deg, spin, dt, gap, gravity)
     contact = builtin if isinstance(builtin, _builtin.BuiltinContact) else _builtin.BuiltinContact.of(builtin)
+    max_time = _max_time(law, body1, body2, speed, angle_deg, dt, gap)
+    check_step_budget(math.ceil(max_time / dt), dt, gap, "gap/V_n and the contact's duration bound")
     scene = _scene(body1, body2, speed, angle_deg, spin, dt, gap, gravity)
     try:
         _builtin.apply(scene.client, (scene.body1, scene.body2), contact)
-        rec = _builtin.measure_impact(scene, contact, max_time=_max_time(law, body1, body2, speed, angle_deg, dt, gap))
+        rec = _builtin.measure_impact(scene, contact, max_time=max_time)
     finally:
         scene.close()
     rec.inputs.update(speed=speed, angle_deg=angle_deg, spin=spin, gap=gap, gravity=gravity)
