@@ -44,12 +44,15 @@ from __future__ import annotations
 
 import abc
 
+import numpy as np
+
 from ._contacts import ContactManager
 from .contract import (  # the contract's data, re-exported: the adapters import it from here
     RADIUS_RTOL,
     STEPS_PER_CONTACT_MIN,
     ContactForces,
     ContactKinematics,
+    ContactReport,
     PairSpec,
     as_array,
     check_law_curvature,
@@ -57,7 +60,7 @@ from .contract import (  # the contract's data, re-exported: the adapters import
 from .registry import ENGINES, get_engine
 
 __all__ = ["EngineAdapter", "ENGINES", "get_engine", "RADIUS_RTOL", "STEPS_PER_CONTACT_MIN", "ContactForces",
-           "ContactKinematics", "PairSpec", "as_array", "check_law_curvature"]
+           "ContactKinematics", "ContactReport", "PairSpec", "as_array", "check_law_curvature"]
 
 
 class EngineAdapter(abc.ABC):
@@ -88,3 +91,29 @@ class EngineAdapter(abc.ABC):
     def pop_records(self) -> list:
         """Finished impacts since the last call, and forget them (memory stays flat)."""
         return self.manager.pop_records()
+
+    #: names of each pair's bodies [(body1, body2)], set by the adapter
+    pair_names: list[tuple[str, str]] = []
+
+    def contact_forces(self) -> list[ContactReport]:
+        """The MSF contact forces of the last engine step, one
+        :class:`engines.contract.ContactReport` per pair that exerted a force
+        in it (SI units; step-averaged: what the engine applied). The last
+        step is the one the adapter last computed: after ``adapter.step()``
+        or ``mj_step`` the step just taken; after an ``mj_forward`` the step
+        that starts at the current state (``ContactReport.t`` says which)."""
+        out, kin = getattr(self, "_last_out", None), getattr(self, "_last_kin", None)
+        if out is None or kin is None:
+            return []
+        force = np.asarray(out.force, dtype=float).reshape(-1, 3)
+        reports = []
+        for k in np.flatnonzero(np.any(force != 0.0, axis=1)):
+            p = int(out.pair[k])
+            n = np.asarray(kin.normal[k], dtype=float)
+            F = force[k].copy()
+            Fn = float(F @ n)
+            reports.append(ContactReport(
+                pair=p, body1=self.pair_names[p][0], body2=self.pair_names[p][1], t=float(kin.t),
+                point=np.asarray(out.point[k], dtype=float).copy(), normal=n.copy(), force=F, F_n=Fn,
+                F_t=F - Fn * n, overlap=float(self.manager.x[p]) if self.manager.active[p] else 0.0))
+        return reports

@@ -87,6 +87,36 @@ class ContactForces:
     pair: np.ndarray
 
 
+@dataclass(frozen=True)
+class ContactReport:
+    """One MSF contact's force over one engine step, in SI units (what
+    :meth:`engines.base.EngineAdapter.contact_forces` returns).
+
+    pair: index into the adapter's pairs; body1, body2: their names (MuJoCo
+        geom names; pybullet "body name/link name").
+    t: engine time at the start of the step [s].
+    point: contact point, mid-overlap, at the step start [m] (3,).
+    normal: unit normal from body 2 to body 1 at the step start (3,).
+    force: step-averaged force on body 1 [N] (3,) (body 2 takes -force),
+        = F_n normal + F_t.
+    F_n: its normal component [N] (positive: pushing the bodies apart).
+    F_t: its tangential part [N] (3,).
+    overlap: the approach x of the undeformed surfaces at the end of the
+        step [m] (the manager's; 0 if the contact ended within the step).
+    """
+
+    pair: int
+    body1: str
+    body2: str
+    t: float
+    point: np.ndarray
+    normal: np.ndarray
+    force: np.ndarray
+    F_n: float
+    F_t: np.ndarray
+    overlap: float
+
+
 #: The law's radii must be the engine shapes' (float32/float64 round trips only).
 RADIUS_RTOL = 1e-9
 

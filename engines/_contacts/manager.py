@@ -20,7 +20,7 @@ from .compiled import CompiledPath, kernel_law
 from .records import Records
 from .reference import NumpyPath
 from .islands import islands, step_island
-from .state import NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES, _dot
+from .state import NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES, _dot, _name
 
 
 class ContactManager(CompiledPath, NumpyPath, Records):
@@ -67,6 +67,9 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             if p.tangential not in TANGENTIAL_MODES:
                 raise ValueError(f"pairs[{i}].tangential = {p.tangential!r} is not one of {TANGENTIAL_MODES}")
         self.pairs = list(pairs)
+        #: each pair's body names (body1, body2), written into the records (an adapter sets
+        #: the engine's names; default: the PairSpec's identifiers as text)
+        self.pair_names = [(_name(p.body1), _name(p.body2)) for p in self.pairs]
         self.dt = dt
         self.engine = str(engine)
         self.settle_rate = float(settle_rate)

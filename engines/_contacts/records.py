@@ -19,7 +19,7 @@ from msf_contact.record import ImpactRecord
 from .. import _kernel as K
 from .state import (
     _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, PENDING_MAX_STEPS, SUBSTEPS_PER_CONTACT, SUBSTEPS_PER_TANGENTIAL, _dot,
-    _duration_estimate, _name, _pc, _plain, _Rows, onset_speed_floor,
+    _duration_estimate, _pc, _plain, _Rows, onset_speed_floor,
 )
 
 
@@ -167,7 +167,7 @@ class Records:
             ended_by=ended_by, law=law.name, engine=self.engine, dt=self.dt,
             parameters=dict(params),
             inputs={
-                "pair": p, "body1": _name(self.pairs[p].body1), "body2": _name(self.pairs[p].body2),
+                "pair": p, "body1": self.pair_names[p][0], "body2": self.pair_names[p][1],
                 "t_onset": float(self.t_onset[p]), "t_end": float(t_end),
                 "v_n_in": float(self.v_n_in[p]), "v_n_onset_used": float(self.v_n_used[p]),
                 "v_t_in": lu, "mass_effective": float(self.m_eff[p]), "tangential": self.pairs[p].tangential,

@@ -467,6 +467,9 @@ class MujocoAdapter(EngineAdapter):
             self._group_of[self._fast.index] = np.arange(self._fast.index.size)
             self._no_points = np.zeros((0, 3))  # p1, p2 when there is no free group
         self.manager.set_body_probe(self._probe, batch=self._probe_batch)
+        self.pair_names = [(str(p.body1), str(p.body2)) for p in pairs]
+        self.manager.pair_names = self.pair_names
+        self._sensors = self._msf_sensors()
         # contacts sharing a moving body are solved together (engines._islands): a body's key is
         # its tree's root (the links of one chain are one island), -1 for a body welded to the world
         keys = np.array([[-1 if p.fixed1 else int(model.body_rootid[p.body1]),
@@ -649,6 +652,44 @@ class MujocoAdapter(EngineAdapter):
             if not fixed2:
                 mujoco.mj_applyFT(model, data, -F, _ZERO3, data.xipos[b2] + r2, b2, data.qfrc_passive)
 
+    def _msf_sensors(self) -> list[tuple[int, int, int, int]]:
+        """The model's user sensors on a managed geom (``<sensor><user objtype="geom"
+        objname=GEOM dim="1|3" needstage="pos|vel|acc"/>``): (sensordata address,
+        dim, geom, stage). dim 1 reads the normal force on the geom [N], dim 3
+        the MSF force on it [N] (world axes), of the step that starts at the
+        state of the mj_forward (after mj_step: the step just taken)."""
+        m = self.model
+        geoms = {g for p in self._pairs for g in (p.geom1, p.geom2)}
+        out = []
+        for s in range(m.nsensor):
+            if (int(m.sensor_type[s]) != int(mujoco.mjtSensor.mjSENS_USER)
+                    or int(m.sensor_objtype[s]) != int(mujoco.mjtObj.mjOBJ_GEOM)
+                    or int(m.sensor_objid[s]) not in geoms):
+                continue
+            dim = int(m.sensor_dim[s])
+            if dim not in (1, 3):
+                raise ValueError(f"user sensor {m.sensor(s).name!r} on the MSF geom "
+                                 f"{m.geom(int(m.sensor_objid[s])).name!r} has dim = {dim}; give dim 1 (normal "
+                                 "force [N]) or 3 (force vector [N])")
+            out.append((int(m.sensor_adr[s]), dim, int(m.sensor_objid[s]), int(m.sensor_needstage[s])))
+        return out
+
+    def _sensor(self, stage: int) -> None:
+        """mjcb_sensor: fill the MSF user sensors of this stage (:meth:`_msf_sensors`)."""
+        reports = self.contact_forces()
+        d = self.data
+        for adr, dim, g, need in self._sensors:
+            if need != stage:
+                continue
+            F, Fn = np.zeros(3), 0.0
+            for r in reports:
+                p = self._pairs[r.pair]
+                if g in (p.geom1, p.geom2):
+                    sign = 1.0 if g == p.geom1 else -1.0
+                    F += sign * r.force
+                    Fn += r.F_n
+            d.sensordata[adr:adr + dim] = Fn if dim == 1 else F
+
     def _jump(self) -> None:
         """The state jumped between steps (engines.mujoco._stepping): the
         contacts of the pairs with a body in a kinematic tree that jumped are
@@ -812,6 +853,7 @@ class MujocoAdapter(EngineAdapter):
         # the manager is called every step, also without candidates (it completes records then)
         kin = self._assemble(blocks)
         out: ContactForces = self.manager.step(kin)
+        self._last_kin, self._last_out = kin, out
         self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
         self.last_forces = out if kin.pair.size else None
         pair = np.asarray(out.pair, dtype=int)
@@ -868,6 +910,7 @@ class MujocoAdapter(EngineAdapter):
         else:
             kin = self._assemble([b for b in (fast, slow) if b is not None])
         out: ContactForces = mgr.step(kin)
+        self._last_kin, self._last_out = kin, out
         self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
         self.last_forces = out if kin.pair.size else None
         pair = np.asarray(out.pair, dtype=np.int64)
@@ -1091,6 +1134,17 @@ class MujocoAdapter(EngineAdapter):
 # -- the one global hook ------------------------------------------------------------
 _REGISTRY: dict[int, MujocoAdapter] = {}
 _PREVIOUS: list = []  # the hook that was installed before ours (one entry while installed)
+_PREVIOUS_SENSOR: list = []  # the mjcb_sensor before ours (one entry while an adapter with MSF sensors is installed)
+
+
+def _dispatch_sensor(model, data, stage) -> None:
+    """The mjcb_sensor of this process while an adapter with MSF user sensors
+    is installed: chain the previous Python hook, then fill the adapter's sensors."""
+    if _PREVIOUS_SENSOR and _PREVIOUS_SENSOR[0] is not None:
+        _PREVIOUS_SENSOR[0](model, data, stage)
+    adapter = _REGISTRY.get(id(data))
+    if adapter is not None and adapter.data is data and adapter._sensors:
+        adapter._sensor(int(stage))
 
 
 def _dispatch(model, data) -> None:
@@ -1124,11 +1178,20 @@ def installed(adapter: MujocoAdapter):
         mujoco.set_mjcb_passive(_dispatch)
     _REGISTRY[key] = adapter
     adapter._installed = True
+    sensing = bool(adapter._sensors) and not _PREVIOUS_SENSOR
+    if sensing:
+        prev = mujoco.get_mjcb_sensor()
+        _PREVIOUS_SENSOR[:] = [prev]
+        mujoco.set_mjcb_sensor(_dispatch_sensor)
     try:
         yield adapter
     finally:
         adapter._installed = False
         _REGISTRY.pop(key, None)
+        if sensing:
+            prev = _PREVIOUS_SENSOR[0]
+            _PREVIOUS_SENSOR.clear()
+            mujoco.set_mjcb_sensor(prev)
         if not _REGISTRY:
             prev = _PREVIOUS[0] if _PREVIOUS else None
             _PREVIOUS.clear()

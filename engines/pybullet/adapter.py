@@ -227,6 +227,8 @@ class PybulletAdapter(EngineAdapter):
         self._steps = 0
         self._closed = False
         self.manager.set_body_probe(self._probe)
+        self.pair_names = [(self._body_name(b1), self._body_name(b2)) for b1, b2 in self._bodies]
+        self.manager.pair_names = self.pair_names
         # contacts sharing a moving body are solved together (engines._islands): a free body's key
         # is its slot, the links of one multibody share one key, a fixed body has none (-1)
         B = len(self._body_list)
@@ -263,6 +265,15 @@ class PybulletAdapter(EngineAdapter):
             raise ValueError(f"{label}: body {uid} is a floating-base multibody with joints; links of fixed-base "
                              "multibodies and free single bodies are supported")
         return uid, link
+
+    def _body_name(self, b) -> str:
+        """"body name/link name" of a (body unique id, link index) (the base: its base link's name)."""
+        uid, link = b
+        base, body = (n.decode() for n in pb.getBodyInfo(uid, physicsClientId=self.client))
+        name = body or f"body{uid}"
+        if link < 0:
+            return f"{name}/{base}" if base else name
+        return f"{name}/{pb.getJointInfo(uid, link, physicsClientId=self.client)[12].decode()}"
 
     def _base_fixed(self, uid):
         return pb.getDynamicsInfo(uid, -1, physicsClientId=self.client)[0] == 0.0
@@ -665,6 +676,7 @@ class PybulletAdapter(EngineAdapter):
         kin.pair = np.asarray(kin.pair, int)
         self._cur_bodies = bodies
         out = self.manager.step(kin)
+        self._last_kin, self._last_out = kin, out
         self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
         pair = np.asarray(out.pair, int)
         force = np.asarray(out.force, float)
