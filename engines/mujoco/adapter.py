@@ -467,7 +467,7 @@ class MujocoAdapter(EngineAdapter):
             self._group_of[self._fast.index] = np.arange(self._fast.index.size)
             self._no_points = np.zeros((0, 3))  # p1, p2 when there is no free group
         self.manager.set_body_probe(self._probe, batch=self._probe_batch)
-        self.pair_names = [(str(p.body1), str(p.body2)) for p in pairs]
+        self.pair_names = [(str(p.body1), str(p.body2)) for p in self.pairs]  # one per contact slot
         self.manager.pair_names = self.pair_names
         self._sensors = self._msf_sensors()
         # contacts sharing a moving body are solved together (engines._islands): a body's key is
