@@ -228,7 +228,50 @@ def rk4(code, lc, oc, p, n, T, W, Wc, a, paper, y, h, out, work, buf, k1_ready):
     rhs(code, lc, oc, p, n, T, W, Wc, a, paper, yt, k4, buf, False)
     for j in range(NY):
         out[j] = y[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
+    slip(code, lc, oc, p, n, T, paper, y, out, h, buf)
     return Fn, Ft
+
+
+@jit_inline
+def slip(code, lc, oc, p, n, T, paper, y0, y1, h, buf):
+    """Coulomb slip of the tangential spring over the step y0 -> y1 (NY,)
+    of length h, in place on y1 (_Batch.slip for one row): where the trial
+    force exceeds mu F_n, k s + b (s - s0)/h = -F_capped per axis."""
+    mu = lc[LC_MU]
+    if math.isnan(mu) or not h > 0:
+        return
+    x = max(y1[X], 0.0)
+    xd = -(y1[V] * n[0] + y1[V + 1] * n[1] + y1[V + 2] * n[2])
+    forces(code, lc, oc, p, x, xd, buf)
+    Fn = buf[0]
+    if paper:
+        vcn = y1[VC] * n[0] + y1[VC + 1] * n[1] + y1[VC + 2] * n[2]
+        sd0, sd1, sd2_ = y1[VC] - vcn * n[0], y1[VC + 1] - vcn * n[1], y1[VC + 2] - vcn * n[2]
+    else:
+        sd0, sd1, sd2_ = y1[V] + xd * n[0], y1[V + 1] + xd * n[1], y1[V + 2] + xd * n[2]
+    s_a = T[0, 0] * y1[S] + T[0, 1] * y1[S + 1] + T[0, 2] * y1[S + 2]
+    s_b = T[1, 0] * y1[S] + T[1, 1] * y1[S + 1] + T[1, 2] * y1[S + 2]
+    d_a = T[0, 0] * sd0 + T[0, 1] * sd1 + T[0, 2] * sd2_
+    d_b = T[1, 0] * sd0 + T[1, 1] * sd1 + T[1, 2] * sd2_
+    Fa = -(buf[4] * d_a + buf[2] * s_a)
+    Fb = -(buf[5] * d_b + buf[3] * s_b)
+    cap = mu * max(Fn, 0.0)
+    mag = math.hypot(Fa, Fb)
+    if not mag > cap:
+        return
+    sc = cap / mag if mag > 0 else 1.0
+    Fa *= sc
+    Fb *= sc
+    s0_a = T[0, 0] * y0[S] + T[0, 1] * y0[S + 1] + T[0, 2] * y0[S + 2]
+    s0_b = T[1, 0] * y0[S] + T[1, 1] * y0[S + 1] + T[1, 2] * y0[S + 2]
+    bh_a, bh_b = buf[4] / h, buf[5] / h
+    den_a, den_b = buf[2] + bh_a, buf[3] + bh_b
+    if den_a > 0:
+        s_a = (bh_a * s0_a - Fa) / den_a
+    if den_b > 0:
+        s_b = (bh_b * s0_b - Fb) / den_b
+    for i in range(3):
+        y1[S + i] = s_a * T[0, i] + s_b * T[1, i]
 
 
 @jit_inline

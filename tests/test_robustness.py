@@ -179,3 +179,29 @@ def test_non_finite_values_are_named_not_silently_dropped():
     # the rigid plate's infinite radius and mass are inputs (null means inf there), not a failure
     clean = simulate_impact(law, Body.sphere(nr, 0.02), Body.half_space(RIGID), 1.0).to_dict()
     assert clean["inputs"]["body2"]["radius"] is None and "non_finite" not in clean
+
+
+#: Engines against the reference with friction near normal incidence: the
+#: engines' lever arm is R, the reference's R - x/2 (docs/engines.md, known
+#: limits), an O(x_max/R) difference; measured <= 0.3 % of the incoming spin
+#: at 85-90 deg, 5 m/s, 150 rad/s, mu 0.25, dt 1e-5 s (before the slip of the
+#: tangential spring was taken out in the engines: 117.8 against 128.1 rad/s).
+SPIN_ATOL_SHARE = 5e-3
+
+
+@pytest.mark.mujoco
+@pytest.mark.parametrize("engine", ["mujoco", "pybullet"])
+@pytest.mark.parametrize("law_name, angle", [("msf", 85.0), ("msf", 90.0), ("hertz", 89.0), ("msf", 89.0)])
+def test_engines_spin_near_normal_incidence_match_the_reference(engine, law_name, angle):
+    """Issue 12: spin sign at exactly 90 degrees (the engines recorded spin_in
+    150 as -150) and the friction-cap disagreement at 85-90 degrees."""
+    from engines.base import get_engine
+
+    mat = preset("polyurethane")
+    law = make_law(law_name, ContactPair(mat, RIGID), Curvature.sphere_on_plane(0.01), mu=0.25)
+    ball, plate = Body.sphere(mat, 0.01), Body.half_space(RIGID)
+    ref = simulate_impact(law, ball, plate, 5.0, angle, 150.0)
+    got = get_engine(engine)(law, ball, plate, 5.0, angle, 150.0, dt=1e-5)
+    assert got.spin_in == pytest.approx(150.0, rel=1e-9)
+    assert got.spin_out == pytest.approx(ref.spin_out, abs=SPIN_ATOL_SHARE * 150.0)
+    assert got.f_max <= 0.25 * (1 + solver.F_CAP_RTOL)

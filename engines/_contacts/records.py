@@ -179,7 +179,9 @@ class Records:
         )
         self.active[p] = False
         # spin axis n x t of the incidence (rolling in the direction of incidence positive)
-        t_dir = vct if lv > 0 else u_in
+        # (at exactly 90 deg the centre's tangential velocity is zero: the contact point's slip
+        # -spin x R then points backward, so the tangent of incidence is -u_in, as the reference solver's)
+        t_dir = vct if lv > 0 else [-c for c in u_in]
         lt = lv if lv > 0 else lu
         if lt > 0:
             a0 = self.n_in[p].tolist()
