@@ -48,9 +48,85 @@ def figure_links(figs: list[str]) -> str:
     return "".join(f"![{name}](figures/{name})\n\n" for name in figs)
 
 
+#: Relative slack of an axis span within which a data point counts as inside
+#: (points exactly on a limit, and rounding of the limits).
+FIGURE_SLACK = 1e-6
+
+
+def _artist_points(ax):
+    """(n, 2) data coordinates of what ax draws in data coordinates: line
+    vertices, scatter offsets, errorbar and line collections, bars and
+    stairs. Artists in axes coordinates (axvline, axhline) are skipped."""
+    import numpy as np
+    from matplotlib.collections import Collection, LineCollection
+    from matplotlib.patches import Rectangle, StepPatch
+
+    pts = []
+    for line in ax.get_lines():
+        if line.get_transform() == ax.transData and line.get_visible():
+            pts.append(np.asarray(line.get_xydata(), dtype=float).reshape(-1, 2))
+    for col in ax.collections:
+        if not isinstance(col, Collection) or not col.get_visible():
+            continue
+        if isinstance(col, LineCollection):
+            pts += [np.asarray(seg, dtype=float).reshape(-1, 2) for seg in col.get_segments()]
+        elif col.get_offset_transform() == ax.transData:
+            pts.append(np.asarray(col.get_offsets(), dtype=float).reshape(-1, 2))
+    for patch in ax.patches:
+        if isinstance(patch, Rectangle) and patch.get_transform().contains_branch(ax.transData):
+            x, y, w, h = patch.get_x(), patch.get_y(), patch.get_width(), patch.get_height()
+            pts.append(np.array([[x, y], [x + w, y + h]], dtype=float))
+        elif isinstance(patch, StepPatch):
+            values, edges, baseline = patch.get_data()
+            nz = np.flatnonzero(np.asarray(values) > 0)
+            if nz.size:  # the bins that hold data
+                pts.append(np.array([[edges[nz[0]], 0.0], [edges[nz[-1] + 1], float(np.max(values))]]))
+    pts = [p for p in pts if p.size]
+    return np.concatenate(pts) if pts else np.empty((0, 2))
+
+
+def check_figure(fig, name: str) -> None:
+    """Refuse a report figure that hides data: every point an axes draws
+    lies inside its limits, and no legend inside an axes covers a point
+    (issue 12). Raises ValueError naming the figure, the axes and the point."""
+    import numpy as np
+
+    fig.canvas.draw()
+    for i, ax in enumerate(fig.axes):
+        pts = _artist_points(ax)
+        pts = pts[np.all(np.isfinite(pts), axis=1)]
+        if not len(pts):
+            continue
+        label = f"figure {name}, axes {i} ({ax.get_title() or ax.get_ylabel()!r})"
+        for k, (lim, scale) in enumerate(((ax.get_xlim(), ax.get_xscale()), (ax.get_ylim(), ax.get_yscale()))):
+            lo, hi = sorted(lim)
+            v = pts[:, k]
+            if scale == "log":
+                bad = v[(v <= 0) | (v < lo * (1 - FIGURE_SLACK)) | (v > hi * (1 + FIGURE_SLACK))]
+            else:
+                slack = FIGURE_SLACK * (hi - lo)
+                bad = v[(v < lo - slack) | (v > hi + slack)]
+            if bad.size:
+                raise ValueError(f"{label}: data at {'xy'[k]} = {bad[0]:.6g} outside the axis [{lo:.6g}, {hi:.6g}]")
+        legend = ax.get_legend()
+        if legend is not None and legend.get_visible():
+            box = legend.get_window_extent()
+            axbox = ax.get_window_extent()
+            if box.overlaps(axbox):
+                disp = ax.transData.transform(pts)
+                inside = ((disp[:, 0] > box.x0) & (disp[:, 0] < box.x1) & (disp[:, 1] > box.y0)
+                          & (disp[:, 1] < box.y1))
+                if np.any(inside):
+                    j = int(np.flatnonzero(inside)[0])
+                    raise ValueError(f"{label}: the legend covers data at ({pts[j, 0]:.6g}, {pts[j, 1]:.6g}); "
+                                     "place it outside the axes")
+
+
 def save_figure_atomic(fig, path: str | os.PathLike, **kw) -> Path:
-    """Save a matplotlib figure atomically (PNG by default)."""
+    """Save a matplotlib figure atomically (PNG by default), after
+    :func:`check_figure`."""
     path = Path(path)
+    check_figure(fig, path.name)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.stem}.", suffix=path.suffix, dir=path.parent)
     os.close(fd)

@@ -51,3 +51,17 @@ def test_readme_tour_prints_what_it_says(capsys):
     quoted = re.search(r"^prints `([^`]+)`", README, flags=re.M).group(1)
     exec(compile(block, "README.md", "exec"), {})
     assert capsys.readouterr().out.strip() == quoted
+
+
+def test_readme_convention_and_hunt_crossley_numbers(capsys):
+    """README, Units and conventions: the two --convention durations, their
+    ratio (1 - nu^2)^(-2/5) and Hunt-Crossley's 0.7885 for --hc-cor 0.8."""
+    tau = {c: run_json(capsys, "impact", "--law", "hertz", "--ball-nu", "0.3", "--convention", c)["tau"]
+           for c in ("msf", "hertz")}
+    assert f"tau {tau['msf'] * 1e3:.6f} ms against {tau['hertz'] * 1e3:.6f} ms" in " ".join(README.split())
+    assert tau["msf"] / tau["hertz"] == pytest.approx((1 - 0.3**2) ** -0.4, rel=1e-9)
+    assert "3.8 % longer at nu = 0.3 and 11.6 % at nu = 0.49" in " ".join(README.split())
+    assert f"{100 * ((1 - 0.3**2) ** -0.4 - 1):.1f} {100 * ((1 - 0.49**2) ** -0.4 - 1):.1f}" == "3.8 11.6"
+    hc = run_json(capsys, "impact", "--law", "hunt-crossley", "--hc-cor", "0.8")["cor_n"]
+    assert "`--hc-cor 0.8` gives 0.7885" in " ".join(README.split())
+    assert f"{hc:.4f}" == "0.7885"

@@ -205,3 +205,30 @@ def test_engines_spin_near_normal_incidence_match_the_reference(engine, law_name
     assert got.spin_in == pytest.approx(150.0, rel=1e-9)
     assert got.spin_out == pytest.approx(ref.spin_out, abs=SPIN_ATOL_SHARE * 150.0)
     assert got.f_max <= 0.25 * (1 + solver.F_CAP_RTOL)
+
+
+def test_figure_check_refuses_hidden_data_and_covering_legends(tmp_path):
+    """Issue 12: every report figure is checked when it is saved
+    (experiments._io.save_figure_atomic): data outside the axes, or a legend
+    over data, is refused by name."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from experiments._io import check_figure, save_figure_atomic
+
+    fig, ax = plt.subplots()
+    ax.plot([0, 1, 2], [0, 5, 10], label="a line")
+    ax.set_ylim(0, 6)
+    with pytest.raises(ValueError, match="figure f.png, axes 0.*y = 10 outside the axis"):
+        check_figure(fig, "f.png")
+    ax.set_ylim(0, 10)
+    ax.plot([0.1] * 50, np.linspace(9.5, 9.9, 50), label="under the legend")
+    ax.legend(loc="upper left")
+    with pytest.raises(ValueError, match="the legend covers data"):
+        save_figure_atomic(fig, tmp_path / "g.png")
+    assert not (tmp_path / "g.png").exists()
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    save_figure_atomic(fig, tmp_path / "g.png")
+    plt.close(fig)

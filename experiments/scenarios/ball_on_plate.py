@@ -251,24 +251,33 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     # force-time curves of every record that has them
     curves = [r for r in rows if isinstance(r.get("inputs"), dict) and "curves" in r["inputs"]]
     if curves:
-        fig, ax = plt.subplots(figsize=(11, 4.8))
+        # one panel per engine, each over the reference solver's curves: engines that agree
+        # (MuJoCo and pybullet draw the same staircase) no longer hide each other
+        others = sorted({r["cell.engine"] for r in curves} - {"reference"}) or ["reference"]
+        fig, axes = plt.subplots(1, len(others), figsize=(5.5 * len(others) + 3.0, 4.6), sharey=True,
+                                 squeeze=False)
         speeds = sorted({r["cell.speed"] for r in curves})
         shade = {v: f"C{i}" for i, v in enumerate(speeds)}
-        for r in sorted(curves, key=lambda r: (r["cell.engine"] != "reference", r["cell.engine"], r["cell.speed"])):
-            c = r["inputs"]["curves"]
-            label = f"{r['cell.engine']} {r['cell.speed']:g} m/s, {r['cell.angle']:g} deg"
-            t_ms = [t * 1e3 for t in c["t"]]
-            if c.get("kind") == "step-averaged":  # an engine: the force it applied over each step
-                ax.step(t_ms + [t_ms[-1] + c["dt"] * 1e3], c["F_n"] + [c["F_n"][-1]], where="post", lw=1,
-                        ls="--" if r["cell.engine"].startswith("mujoco") else ":", color=shade[r["cell.speed"]],
-                        label=label + " (step-averaged)")
-            else:
-                ax.plot(t_ms, c["F_n"], lw=2, color=shade[r["cell.speed"]], alpha=0.6, label=label)
-        ax.set_xlabel("time since onset [ms]")
-        ax.set_ylabel("normal force F_n [N]")
-        ax.set_title("Normal force: the reference solver's curve and, for the engines, the force applied per step")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        for ax, engine in zip(axes[0], others):
+            for r in sorted(curves, key=lambda r: r["cell.speed"]):
+                if r["cell.engine"] not in ("reference", engine):
+                    continue
+                c = r["inputs"]["curves"]
+                label = f"{r['cell.engine']} {r['cell.speed']:g} m/s, {r['cell.angle']:g} deg"
+                t_ms = [t * 1e3 for t in c["t"]]
+                if c.get("kind") == "step-averaged":  # an engine: the force it applied over each step
+                    ax.step(t_ms + [t_ms[-1] + c["dt"] * 1e3], c["F_n"] + [c["F_n"][-1]], where="post", lw=1.2,
+                            ls="--", marker="o", ms=3, color=shade[r["cell.speed"]], label=label + " (per step)")
+                else:
+                    ax.plot(t_ms, c["F_n"], lw=2, color=shade[r["cell.speed"]], alpha=0.5, label=label)
+            ax.set_title(f"{engine} against the reference solver", fontsize=9)
+            ax.set_xlabel("time since onset [ms]")
+            ax.grid(alpha=0.3)
+        axes[0][0].set_ylabel("normal force F_n [N]")
+        axes[0][-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        fig.suptitle("Normal force. An engine's staircase is the mean force it applied over each step: it starts "
+                     "at the step that holds the onset (before t = 0) and, for a contact of a few steps, stays "
+                     "below the peak", fontsize=8)
         add_figure(fig, out, "force_time.png", figs)
     # table
     lines.append("| engine | law | V [m/s] | angle [deg] | spin [rad/s] | COR | cor_t | tau [ms] | x_max [mm] | "

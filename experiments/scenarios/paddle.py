@@ -343,6 +343,12 @@ def _pybullet_state(c: int, ub: int, up: int, lp: int, d: float) -> dict:
 
 
 # ------------------------------------------------------------------- cell ---
+def _rebounded(r: dict, phases: int) -> bool:
+    """A strike with a rebound: the ball leaves upward (v_z > 0) and was not
+    carried by the paddle in every onset phase."""
+    return r["vz"] > 0 and r["carried"] < phases
+
+
 def run_cell(cell: dict) -> list[dict]:
     import numpy as np
 
@@ -442,10 +448,14 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
                      "direction [deg] | relative COR | tau [ms] | paddle u after [m/s] | carried |\n"
                      "|---:|---|---:|---:|---:|---:|---:|---:|---:|---:|\n")
         for r in sorted(sel, key=lambda r: (r["cell.u"], ENGINES.index(r["cell.engine"]), r["cell.contact"])):
-            err = 100.0 * (r["vz"] - r["pred_v_out"]) / abs(r["pred_v_out"])
+            if _rebounded(r, s["phases"]):
+                err = f"{100.0 * (r['vz'] - r['pred_v_out']) / abs(r['pred_v_out']):+.2f}%"
+                direction = f"{r['direction_deg']:+.2f}"
+            else:  # no rebound (the ball does not leave upward, or rides on the paddle): no value to compare
+                err = direction = "no rebound"
             lines.append(f"| {r['cell.u']:g} | {_label(r['cell.engine'], r['cell.contact'])} | "
                          f"{r['rebound_speed']:.4f} [{r['rebound_speed_min']:.4f}..{r['rebound_speed_max']:.4f}] | "
-                         f"{r['pred_v_out']:.4f} | {err:+.2f}% | {r['direction_deg']:+.2f} | {r['cor_rel']:.4f} | "
+                         f"{r['pred_v_out']:.4f} | {err} | {direction} | {r['cor_rel']:.4f} | "
                          f"{1e3 * r['tau']:.3f} | {r['u_after']:.4f} | {r['carried']}/{s['phases']} |\n")
         lines.append("\n")
         fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
@@ -457,7 +467,8 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
             axes[0].plot(us, [r["rebound_speed"] for _, r in pts], ls, marker=mk, label=_label(*key))
             axes[0].fill_between(us, [r["rebound_speed_min"] for _, r in pts],
                                  [r["rebound_speed_max"] for _, r in pts], color=ls[:2], alpha=0.1)
-            axes[1].plot(us, [r["direction_deg"] for _, r in pts], ls, marker=mk, label=_label(*key))
+            axes[1].plot(us, [r["direction_deg"] if _rebounded(r, s["phases"]) else float("nan") for _, r in pts],
+                         ls, marker=mk, label=_label(*key))
         for eng in ("mujoco", "pybullet"):
             pts = sorted((r["cell.u"], r) for r in sel if r["cell.engine"] == eng)
             if pts:
@@ -468,7 +479,7 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
         for ax in axes:
             ax.set_xlabel("paddle speed at the hit point [m/s]")
             ax.grid(alpha=0.3)
-        axes[0].legend(fontsize=7)
+        axes[0].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         fig.suptitle(f"{drive} paddle, dt = {dt:g} s, ball falling at {s['ball_speed']:g} m/s")
         add_figure(fig, out, f"paddle_{drive}_dt{dt:g}.png", figs)
     lines.append(figure_links(figs))

@@ -164,8 +164,12 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     save_figure_atomic(fig, out / "figures" / "jet_energy_map.png", dpi=110)
     plt.close(fig)
     figs.append("jet_energy_map.png")
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.2))
-    fa = np.linspace(0.5, 90, 180)
+    fig, axes = plt.subplots(1, 2, figsize=(15, 4.6))
+    # the angle axis spans the data (bins with impacts), not 0-90 deg
+    spans = [ba[e]["centre"][ba[e]["n"] > 0] for e in engines]
+    spans = np.concatenate([s for s in spans if s.size]) if any(s.size for s in spans) else np.array([0.5, 90.0])
+    a_lo, a_hi = max(float(spans.min()) - 5.0, 0.0), min(float(spans.max()) + 5.0, 90.0)
+    fa = np.linspace(max(a_lo, 0.5), a_hi, 180)
     for e in engines:
         b = ba[e]
         m = b["n"] > 0
@@ -182,30 +186,41 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     axes[1].plot(fa, finnie(fa), "k-", lw=1.5, label="Finnie (1960) f(a)/f_max")
     ref = reference_by_angle(spec)
     if ref is not None:
-        axes[0].plot(ref["angle"], ref["cor_n"], "k-", lw=1, label=f"reference solver, {ref['label']}: cor_n")
-        axes[0].plot(ref["angle"], ref["cor_t"], "k--", lw=1, label="reference solver: cor_t")
+        ra = np.asarray(ref["angle"], dtype=float)
+        keep = (ra >= a_lo) & (ra <= a_hi)
+        axes[0].plot(ra[keep], np.asarray(ref["cor_n"], dtype=float)[keep], "k-", lw=1,
+                     label=f"reference solver, {ref['label']}: cor_n")
+        axes[0].plot(ra[keep], np.asarray(ref["cor_t"], dtype=float)[keep], "k--", lw=1,
+                     label="reference solver: cor_t")
     axes[0].set_ylabel("coefficient of restitution [-]")
     axes[1].set_ylabel("normalised to the maximum [-]")
     for ax in axes:
         ax.set_xlabel("impact angle to the plate [deg]")
-        ax.set_xlim(0, 90)
+        ax.set_xlim(a_lo, a_hi)
         ax.grid(alpha=0.3)
-        ax.legend(fontsize=7)
+        ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))  # outside the data
     fig.tight_layout()
     save_figure_atomic(fig, out / "figures" / "jet_angle.png", dpi=110)
     plt.close(fig)
     figs.append("jet_angle.png")
-    fig, ax = plt.subplots(figsize=(7, 4.2))
+    fig, ax = plt.subplots(figsize=(10, 4.2))
+    filled = []  # the axis spans the filled bins and the coating strength, not the histogram's whole range
     for e in engines:
         a = merged[e][0]
         ax.stairs(a.pc_counts[1:-1], a.pc_edges / 1e6, color=colors[e],
                   label=f"{e}: {a.n_above_strength / max(a.n, 1):.1%} above strength")
+        nz = np.flatnonzero(np.asarray(a.pc_counts[1:-1]) > 0)
+        if nz.size:
+            filled += [a.pc_edges[nz[0]] / 1e6, a.pc_edges[nz[-1] + 1] / 1e6]
     ax.axvline(pl.strength / 1e6, color="k", ls="--", label=f"coating strength {pl.strength / 1e6:g} MPa")
     ax.set_xscale("log")
+    if filled:
+        lo, hi = min(filled + [pl.strength / 1e6]), max(filled + [pl.strength / 1e6])
+        ax.set_xlim(lo / 1.3, hi * 1.3)
     ax.set_xlabel("peak contact pressure Pc_max (20) [MPa]")
     ax.set_ylabel("impacts per bin")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     save_figure_atomic(fig, out / "figures" / "jet_pc_hist.png", dpi=110)
     plt.close(fig)
