@@ -64,8 +64,12 @@ NLC = 13  # LC_SRA, LC_SRB: sqrt(R_a), sqrt(R_b)
 KP_MSF, KP_SMALL, KP_HERTZ = 0, 1, 2
 
 # layout of y, as engines._contacts
-X, V, S, VC, P, WEL, WVI, Q, WT, PI = 0, 1, 4, 7, 10, 13, 14, 15, 16, 17
-NY = 20
+X, V, S, VC, P, WEL, WVI, Q, WT, PI, G, PD = 0, 1, 4, 7, 10, 13, 14, 15, 16, 17, 20, 23
+NY = 26
+# the moving contact point of a row, Lr (NL,) (engines._contacts.state.LEVER_DOC): on flag, x_ref,
+# W01 = J0 M^-1 J1^T (3, 3) row-major, W11 = J1 M^-1 J1^T (3, 3), g0 = J1 qdot (3,)
+L_ON, L_XREF, L_W01, L_W11, L_G0 = 0, 1, 2, 11, 20
+NL = 23
 
 # tuning constants, passed in as cst (their values and reasons: engines._contacts)
 C_SPEED, C_NEWTON, C_VTOL, C_FD, C_FRATIO, C_RITER, C_RTOL, C_SETTLE = range(8)
@@ -161,9 +165,10 @@ def indicator(code, lc, oc, p, x, xd):
 
 
 @jit
-def rhs(code, lc, oc, p, n, T, W, Wc, a, paper, y, dy, buf, want_ft):
+def rhs(code, lc, oc, p, n, T, W, Wc, a, paper, Lr, y, dy, buf, want_ft):
     """dy/dt of one row (NY,) as _Batch.rhs; returns (F_n, |F_t|) at y
-    (|F_t| only when want_ft, else 0: the RK4 stages after the first need neither)."""
+    (|F_t| only when want_ft, else 0: the RK4 stages after the first need neither).
+    Lr (NL,): the moving contact point (_Batch.rhs, engines._contacts.state.LEVER_DOC)."""
     x = max(y[X], 0.0)
     xd = -(y[V] * n[0] + y[V + 1] * n[1] + y[V + 2] * n[2])
     forces(code, lc, oc, p, x, xd, buf)
@@ -190,8 +195,26 @@ def rhs(code, lc, oc, p, n, T, W, Wc, a, paper, y, dy, buf, want_ft):
     f2 = Fn * n[2] + Fa * T[0, 2] + Fb * T[1, 2]
     Ft0, Ft1, Ft2 = f0 - Fn * n[0], f1 - Fn * n[1], f2 - Fn * n[2]
     dy[X] = xd
+    if Lr[L_ON] != 0.0:
+        # the contact point moves with the overlap: v' = W(d) f + a + d' g, g' = (W01^T + d W11) f,
+        # W(d) = W + d (W01 + W01^T) + d^2 W11, d = max(x, 0) - max(x_ref, 0); PD' = d f (LEVER_DOC)
+        d = max(y[X], 0.0) - Lr[L_XREF]
+        dd = xd if y[X] > 0.0 else 0.0
+        for i in range(3):
+            A = Lr[L_W01 + 3 * i] * f0 + Lr[L_W01 + 3 * i + 1] * f1 + Lr[L_W01 + 3 * i + 2] * f2
+            B = Lr[L_W01 + i] * f0 + Lr[L_W01 + 3 + i] * f1 + Lr[L_W01 + 6 + i] * f2
+            C = Lr[L_W11 + 3 * i] * f0 + Lr[L_W11 + 3 * i + 1] * f1 + Lr[L_W11 + 3 * i + 2] * f2
+            dy[V + i] = W[i, 0] * f0 + W[i, 1] * f1 + W[i, 2] * f2 + (d * (A + B + d * C) + dd * y[G + i]) + a[i]
+            dy[G + i] = B + d * C
+        dy[PD] = d * f0
+        dy[PD + 1] = d * f1
+        dy[PD + 2] = d * f2
+    else:
+        for i in range(3):
+            dy[V + i] = W[i, 0] * f0 + W[i, 1] * f1 + W[i, 2] * f2 + a[i]
+            dy[G + i] = 0.0
+            dy[PD + i] = 0.0
     for i in range(3):
-        dy[V + i] = W[i, 0] * f0 + W[i, 1] * f1 + W[i, 2] * f2 + a[i]
         dy[VC + i] = Wc[i, 0] * f0 + Wc[i, 1] * f1 + Wc[i, 2] * f2 + a[i]
         dy[PI + i] = y[P + i]
     dy[S] = sd0
@@ -208,7 +231,7 @@ def rhs(code, lc, oc, p, n, T, W, Wc, a, paper, y, dy, buf, want_ft):
 
 
 @jit
-def rk4(code, lc, oc, p, n, T, W, Wc, a, paper, y, h, out, work, buf, k1_ready):
+def rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Lr, y, h, out, work, buf, k1_ready):
     """One classical RK4 step of length h from y into out; returns (F_n, |F_t|) at y.
     work: (5, NY) scratch; work[0] holds the slope at y: with k1_ready it is
     the one of the previous call from the same y (the partial steps of root
@@ -216,16 +239,16 @@ def rk4(code, lc, oc, p, n, T, W, Wc, a, paper, y, h, out, work, buf, k1_ready):
     k1, k2, k3, k4, yt = work[0], work[1], work[2], work[3], work[4]
     Fn = Ft = 0.0
     if not k1_ready:
-        Fn, Ft = rhs(code, lc, oc, p, n, T, W, Wc, a, paper, y, k1, buf, True)
+        Fn, Ft = rhs(code, lc, oc, p, n, T, W, Wc, a, paper, Lr, y, k1, buf, True)
     for j in range(NY):
         yt[j] = y[j] + 0.5 * h * k1[j]
-    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, yt, k2, buf, False)
+    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, Lr, yt, k2, buf, False)
     for j in range(NY):
         yt[j] = y[j] + 0.5 * h * k2[j]
-    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, yt, k3, buf, False)
+    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, Lr, yt, k3, buf, False)
     for j in range(NY):
         yt[j] = y[j] + h * k3[j]
-    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, yt, k4, buf, False)
+    rhs(code, lc, oc, p, n, T, W, Wc, a, paper, Lr, yt, k4, buf, False)
     for j in range(NY):
         out[j] = y[j] + h / 6.0 * (k1[j] + 2.0 * k2[j] + 2.0 * k3[j] + k4[j])
     slip(code, lc, oc, p, n, T, paper, y, out, h, buf)
@@ -294,7 +317,7 @@ def _gfun(kind, code, lc, oc, p, n, yy, xs, Bs, fz):
 
 
 @jit
-def _root(kind, code, lc, oc, p, n, T, W, Wc, a, paper, y0, h, lo, hi, g_lo, g_hi, xs, Bs, fz, tmp, work, buf,
+def _root(kind, code, lc, oc, p, n, T, W, Wc, a, paper, Lr, y0, h, lo, hi, g_lo, g_hi, xs, Bs, fz, tmp, work, buf,
           root_iter, root_tol):
     """Illinois regula falsi for th in [lo, hi] with g(lo) > 0 >= g(hi), g of the
     state rk4(y0, th h); as engines._contacts._find_root for one row. y0 is
@@ -309,7 +332,7 @@ def _root(kind, code, lc, oc, p, n, T, W, Wc, a, paper, y0, h, lo, hi, g_lo, g_h
             return hi
         if th <= lo or th >= hi:
             th = 0.5 * (lo + hi)
-        rk4(code, lc, oc, p, n, T, W, Wc, a, paper, y0, th * h, tmp, work, buf, True)
+        rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Lr, y0, th * h, tmp, work, buf, True)
         gt = _gfun(kind, code, lc, oc, p, n, tmp, xs, Bs, fz)
         if gt > 0:
             if side == 1:
@@ -376,7 +399,7 @@ def _solve3(A3, ia, B, ib, iout, M):
 
 
 @jit
-def prelude(cst, pairs, x_eng, n, v, vc, W, Wc, a, paper, t0, dt, settle_rate, settled_path, kg, codes, LC, oc,
+def prelude(cst, pairs, x_eng, n, v, vc, W, Wc, a, paper, Lr, t0, dt, settle_rate, settled_path, kg, codes, LC, oc,
             active, x_state, s_state, tau_est, dv_corr, dvc_corr, W_el, W_visc, Q_t, W_t,
             y, T, t_loc, in_c, settled, status, turned, fl, ints, buf, m33, v3, M34):
     """Step start for rows 0..k-1 (pair index pairs[r]): y, T, in_c, and the
@@ -412,6 +435,12 @@ def prelude(cst, pairs, x_eng, n, v, vc, W, Wc, a, paper, t0, dt, settle_rate, s
         for i in range(3):
             y[r, P + i] = 0.0
             y[r, PI + i] = 0.0
+            y[r, G + i] = Lr[r, L_G0 + i]
+            y[r, PD + i] = 0.0
+        if Lr[r, L_ON] != 0.0:  # v_rel at the internal overlap's point, not the engine's (LEVER_DOC)
+            d0 = max(x0, 0.0) - Lr[r, L_XREF]
+            for i in range(3):
+                y[r, V + i] += y[r, G + i] * d0
         y[r, WEL], y[r, WVI], y[r, Q], y[r, WT] = W_el[p], W_visc[p], Q_t[p], W_t[p]
         t_loc[r] = 0.0
         in_c[r] = act
@@ -561,10 +590,11 @@ def settled_row(cst, r, p, code, lc, oc, n, T, W, Wc, a, paper, t0, dt, y, turne
 
 
 @jit
-def free_flight(n, a, y, rem):
+def free_flight(n, a, Lr, y, rem):
     """Advance one row (y (NY,)) without contact force to the next onset
     (x >= 0 with closing speed) or by rem [s]; returns the time to the onset
-    (inf: none within rem). As ContactManager._free_flight for one row."""
+    (inf: none within rem). As ContactManager._free_flight for one row; a
+    moving contact point (Lr on) adds g (max(x_new, 0) - max(x_old, 0)) to v (LEVER_DOC)."""
     x0 = y[X]
     xd0 = _xdot(y, n)
     c = -0.5 * (a[0] * n[0] + a[1] * n[1] + a[2] * n[2])  # x(t) = x0 + xd0 t + c t^2
@@ -593,6 +623,9 @@ def free_flight(n, a, y, rem):
         tc = math.inf
     tadv = tc if tc < math.inf else rem
     y[X] = x0 + xd0 * tadv + c * tadv * tadv
+    if Lr[L_ON] != 0.0:
+        for i in range(3):
+            y[V + i] += y[G + i] * (max(y[X], 0.0) - max(x0, 0.0))
     for i in range(3):
         y[V + i] += a[i] * tadv
         y[VC + i] += a[i] * tadv
@@ -605,7 +638,7 @@ def free_flight(n, a, y, rem):
 
 
 @jit
-def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt, h_p, turned, fl, ints, buf, work,
+def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, Lr, p, y, t_loc, t0, dt, h_p, turned, fl, ints, buf, work,
                   rows4):
     """RK4 sub-cycling of one contact row from t_loc to the end of the step
     or to the contact's end (ContactManager._integrate for one row). Returns
@@ -619,7 +652,7 @@ def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt,
     nsub = max(1, int(math.ceil(rem / h_p - 1e-9)))
     hs = rem / nsub
     for i in range(nsub):
-        Fn0, Ft0 = rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, hs, Y1, work, buf, False)
+        Fn0, Ft0 = rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Lr, Y, hs, Y1, work, buf, False)
         ints[2] += 1
         # peak force and friction ratio at the substep start
         if Fn0 > fl[F_FMAX, p]:
@@ -633,9 +666,9 @@ def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt,
         lo = 0.0
         # first maximum compression inside this substep
         if not turned[p] and xd0 > 0 and xd1 <= 0:
-            th = _root(0, code, lc, oc, p, n, T, W, Wc, a, paper, Y, hs, 0.0, 1.0, xd0, xd1, 1.0, 1.0, fz, tmp,
+            th = _root(0, code, lc, oc, p, n, T, W, Wc, a, paper, Lr, Y, hs, 0.0, 1.0, xd0, xd1, 1.0, 1.0, fz, tmp,
                        work, buf, riter, rtol)
-            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, th * hs, Yt, work, buf, True)
+            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Lr, Y, th * hs, Yt, work, buf, True)
             turned[p] = True
             fl[F_TAU1, p] = t0 + t_loc + th * hs - fl[F_TONSET, p]
             fl[F_XTURN, p] = Yt[X]
@@ -649,7 +682,7 @@ def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt,
         if fz and xd1 < 0 and indicator(code, lc, oc, p, max(Y1[X], 0.0), xd1) < 0:
             end = True
         if end:
-            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, lo * hs, Yt, work, buf, True)  # Ylo
+            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Lr, Y, lo * hs, Yt, work, buf, True)  # Ylo
             xs = Yt[X] if Yt[X] > 0 else 1.0
             Bs = abs(indicator(code, lc, oc, p, max(Yt[X], 0.0), _xdot(Yt, n)))
             if not Bs > 0:
@@ -658,9 +691,9 @@ def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt,
             g_hi = _gfun(1, code, lc, oc, p, n, Y1, xs, Bs, fz)
             if not g_lo > 0:  # a substep that starts already past the event: end at its start
                 g_lo = 1e-300
-            th = _root(1, code, lc, oc, p, n, T, W, Wc, a, paper, Y, hs, lo, 1.0, g_lo, g_hi, xs, Bs, fz, tmp,
+            th = _root(1, code, lc, oc, p, n, T, W, Wc, a, paper, Lr, Y, hs, lo, 1.0, g_lo, g_hi, xs, Bs, fz, tmp,
                        work, buf, riter, rtol)
-            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Y, th * hs, Yt, work, buf, True)  # Ye
+            rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Lr, Y, th * hs, Yt, work, buf, True)  # Ye
             by_force = False
             if fz:
                 xde = _xdot(Yt, n)
@@ -679,7 +712,7 @@ def integrate_row(cst, code, lc, oc, n, T, W, Wc, a, paper, p, y, t_loc, t0, dt,
 
 
 @jit
-def advance(cst, pairs, n, T, W, Wc, a, paper, kg, codes, LC, oc, t0, dt, h, y, t_loc, in_c, status, ended_by,
+def advance(cst, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, t0, dt, h, y, t_loc, in_c, status, ended_by,
             turned, fl, ints, buf, work, rows4):
     """Move every row through the rest of its step (module docstring, 2):
     status[r] = ST_ONSET (free flight reached an onset at t_loc[r]: the
@@ -695,7 +728,7 @@ def advance(cst, pairs, n, T, W, Wc, a, paper, kg, codes, LC, oc, t0, dt, h, y, 
             continue
         p = pairs[r]
         if not in_c[r]:
-            tc = free_flight(n[r], a[r], y[r], dt - t_loc[r])
+            tc = free_flight(n[r], a[r], Lr[r], y[r], dt - t_loc[r])
             if tc < math.inf:
                 t_loc[r] += tc
                 status[r] = ST_ONSET
@@ -703,7 +736,7 @@ def advance(cst, pairs, n, T, W, Wc, a, paper, kg, codes, LC, oc, t0, dt, h, y, 
             else:
                 t_loc[r] = dt
             continue
-        ended, by, tl = integrate_row(cst, codes[kg[r]], LC[kg[r]], oc, n[r], T[r], W[r], Wc[r], a[r], paper[r], p,
+        ended, by, tl = integrate_row(cst, codes[kg[r]], LC[kg[r]], oc, n[r], T[r], W[r], Wc[r], a[r], paper[r], Lr[r], p,
                                       y[r], t_loc[r], t0, dt, h[p], turned, fl, ints, buf, work, rows4)
         t_loc[r] = tl
         if ended:
@@ -715,10 +748,12 @@ def advance(cst, pairs, n, T, W, Wc, a, paper, kg, codes, LC, oc, t0, dt, h, y, 
 
 @jit
 def finale(pairs, n, W, Wc, settled, in_c, y, dt, timing, kg, LC, active, x_state, xdot_state, s_state, vc_state,
-           W_el, W_visc, Q_t, W_t, phase, outside, settled_state, Jst, dv_corr, dvc_corr, impulse):
+           W_el, W_visc, Q_t, W_t, phase, outside, settled_state, Jst, dv_corr, dvc_corr, impulse, couple):
     """Write back the rows' state (ContactManager._step_group's end): the
     timing correction J = int (dt/2 - t) f dt / dt (0 for settled rows),
-    the step's impulse P + J - J_previous into impulse (k, 3) [N s]."""
+    the step's impulse P + J - J_previous into impulse (k, 3) [N s], and the
+    angular impulse of the moving contact point n x PD / 2 into couple (k, 3)
+    [N m s] (LEVER_DOC)."""
     for r in range(pairs.shape[0]):
         p = pairs[r]
         lc = LC[kg[r]]
@@ -744,6 +779,10 @@ def finale(pairs, n, W, Wc, settled, in_c, y, dt, timing, kg, LC, active, x_stat
         impulse[r, 0] = yr[P] + J0 - Jst[p, 0]
         impulse[r, 1] = yr[P + 1] + J1 - Jst[p, 1]
         impulse[r, 2] = yr[P + 2] + J2 - Jst[p, 2]
+        nr = n[r]
+        couple[r, 0] = 0.5 * (nr[1] * yr[PD + 2] - nr[2] * yr[PD + 1])
+        couple[r, 1] = 0.5 * (nr[2] * yr[PD] - nr[0] * yr[PD + 2])
+        couple[r, 2] = 0.5 * (nr[0] * yr[PD + 1] - nr[1] * yr[PD])
         Jst[p, 0], Jst[p, 1], Jst[p, 2] = J0, J1, J2
         for i in range(3):
             dv_corr[p, i] = W[r, i, 0] * J0 + W[r, i, 1] * J1 + W[r, i, 2] * J2

@@ -61,6 +61,11 @@ class ContactKinematics:
     a_ext: relative acceleration of the contact points from everything but
         these contacts (gravity, actuators, other contacts) [m/s^2] (n, 3).
     t: engine time at the start of the step [s].
+    lever: optional (n, 21): how the contact point moves with the overlap,
+        W01 = J0 M^-1 J1^T and W11 = J1 M^-1 J1^T [1/(kg m)], [1/(kg m^2)]
+        row-major and g0 = J1 qdot [1/s] (engines._contacts.state.LEVER_DOC;
+        free bodies: engines._contacts.state.lever_terms_free). None: the
+        point is frozen at ``point`` over the step.
     """
 
     pair: np.ndarray
@@ -73,6 +78,7 @@ class ContactKinematics:
     W_com: np.ndarray
     a_ext: np.ndarray
     t: float
+    lever: np.ndarray | None = None
 
 
 @dataclass
@@ -80,11 +86,15 @@ class ContactForces:
     """What the manager returns for the step: step-averaged force on body 1
     (body 2 takes the opposite) [N] (n, 3), applied at ``point`` [m] (n, 3),
     for the contacts of the kinematics with the same order; rows of zeros for
-    candidates that did not touch."""
+    candidates that did not touch. torque (n, 3) [N m], when the kinematics
+    gave ``lever``: a step-averaged couple in world axes applied to body 1
+    AND body 2 alike (the force's moment about the contact point that moved
+    with the overlap, engines._contacts.state.LEVER_DOC); None otherwise."""
 
     force: np.ndarray
     point: np.ndarray
     pair: np.ndarray
+    torque: np.ndarray | None = None
 
 
 @dataclass(frozen=True)

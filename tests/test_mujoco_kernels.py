@@ -77,8 +77,9 @@ class _Replay:
     state after the step, the required pairs of before, and the answer the
     numpy path's call got."""
 
-    def __init__(self, real, required, out):
+    def __init__(self, real, required, out, settled):
         self._real, self.required_pairs, self._out = real, required, out
+        self.settled = settled  # which contacts took the settled path in the step before (the adapter's _lever)
         self.kin = None
 
     def step(self, kin):
@@ -106,7 +107,8 @@ class Shadow:
         ad, mgr = self.ad, self.ad.manager
         where = f"step {self.steps + 1}"
         required = np.array(mgr.required_pairs)
-        state = tuple(a.copy() for a in (ad._last_v, ad._last_dv, ad._have_last, ad._push))
+        state = tuple(a.copy() for a in (ad._last_v, ad._last_dv, ad._have_last, ad._push, ad._x_last))
+        settled = mgr.settled.copy()
         seen = {}
         real_step = mgr.step
 
@@ -130,7 +132,8 @@ class Shadow:
         for a, b in zip((ad._last_v, ad._last_dv, ad._have_last), state):
             a[:] = b
         ad._push = state[3]  # the candidates' extra reach before the step (engines._contacts.islands.push_reach)
-        replay = _Replay(mgr, required, seen["out"])
+        ad._x_last[:] = state[4]  # the overlaps of the step before (the moving contact point's a_ext share)
+        replay = _Replay(mgr, required, seen["out"], settled)
         ad.manager = replay
         try:
             ad._compute_compiled()

@@ -59,7 +59,7 @@ def kernel_law(law: ForceLaw):
 class CompiledPath:
     """ContactManager's compiled path (mixed into :class:`engines._contacts.ContactManager`)."""
 
-    def _step_compiled(self, p, x_eng, n, v, vc, W, Wc, a, t0, info):
+    def _step_compiled(self, p, x_eng, n, v, vc, W, Wc, a, t0, info, L=None):
         """_step_group for the rows of every law the kernel knows, in one
         call of the compiled kernel (engines._kernel); law.onset and the
         records stay here, called for the rows the kernel stops at."""
@@ -76,13 +76,15 @@ class CompiledPath:
         ended_by = np.zeros(k, np.int8)
         ints = np.zeros(4, np.int64)
         fl, oc = self._fl, self._oc
-        K.prelude(_KCST, p, x_eng, n, v, vc, W, Wc, a, paper, t0, dt, self.settle_rate, self.settled_path, kg, codes,
+        if L is None:
+            L = np.zeros((k, K.NL))  # no moving contact point (state.LEVER_DOC)
+        K.prelude(_KCST, p, x_eng, n, v, vc, W, Wc, a, paper, L, t0, dt, self.settle_rate, self.settled_path, kg, codes,
                   LC, oc, self.active, self.x, self.s, self.tau_est, self.dv_corr, self.dvc_corr, self.W_el,
                   self.W_visc, self.Q_t, self.W_t, y, T, t_loc, in_c, settled, status, self.turned, fl, ints,
                   *self._scr_settled)
         for _ in range(MAX_SEGMENTS):
             info["segments"] += 1
-            stopped = K.advance(_KCST, p, n, T, W, Wc, a, paper, kg, codes, LC, oc, t0, dt, self.h, y, t_loc, in_c,
+            stopped = K.advance(_KCST, p, n, T, W, Wc, a, paper, L, kg, codes, LC, oc, t0, dt, self.h, y, t_loc, in_c,
                                 status, ended_by, self.turned, fl, ints, *self._scr_rk4)
             if not stopped:
                 break
@@ -105,9 +107,11 @@ class CompiledPath:
         else:
             raise RuntimeError(f"more than {MAX_SEGMENTS} contact onsets/separations in one step of {dt!r} s")
         impulse = np.empty((k, 3))
+        couple = np.empty((k, 3))
         K.finale(p, n, W, Wc, settled, in_c, y, dt, self.timing_correction, kg, LC, self.active, self.x, self.xdot,
                  self.s, self.vc, self.W_el, self.W_visc, self.Q_t, self.W_t, self.phase, self.outside,
-                 self.settled, self.J, self.dv_corr, self.dvc_corr, impulse)
+                 self.settled, self.J, self.dv_corr, self.dvc_corr, impulse, couple)
+        self.couple[p] = couple
         info["settled"] += int(ints[0])
         info["settled_iterations"] += int(ints[1])
         info["substeps"] += int(ints[2])

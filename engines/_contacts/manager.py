@@ -20,7 +20,10 @@ from .compiled import CompiledPath, kernel_law
 from .records import Records
 from .reference import NumpyPath
 from .islands import islands, step_island
-from .state import NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES, _dot, _name
+from .state import (
+    L_G0, L_ON, L_W01, L_W11, L_XREF, NL, NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES,
+    _dot, _name,
+)
 
 
 class ContactManager(CompiledPath, NumpyPath, Records):
@@ -155,6 +158,10 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self.J = z3.copy()  #: timing-correction impulse applied in the last step, removed in the next [N s] (P, 3)
         self.dv_corr = z3.copy()  #: W J: the engine's contact-point velocity offset it causes [m/s] (P, 3)
         self.dvc_corr = z3.copy()  #: W_com J [m/s] (P, 3)
+        #: angular impulse n x PD / 2 of the moving contact point in the last step, on both bodies [N m s] (P, 3)
+        self.couple = z3.copy()
+        #: max(x, 0) of the engine geometry where the timing correction J was applied [m] (P,)
+        self.x_J = z.copy()
         self.body_in: list[dict | None] = [None] * P
         self._oc = np.full((P, K.NOC), np.nan)  #: onset constants per pair for the compiled kernel
         # the kernel's scratch (it allocates nothing itself)
@@ -237,15 +244,55 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         if code:
             self._invalid(code, row, pair, x, n, point, v, vc, W, Wc, a)
         n = n_unit
+        L = None
+        lev = getattr(kin, "lever", None)
+        if lev is not None:
+            lev = as_array(lev, (NL - 2,))
+            if lev.shape[0] != k:
+                raise ValueError(f"kinematics.lever has {lev.shape[0]} rows; expected {k} (len(pair))")
+            if not np.all(np.isfinite(lev)):
+                raise ValueError(f"kinematics.lever is not finite: {lev!r}")
+            L = np.empty((k, NL))
+            L[:, L_ON] = np.any(lev != 0.0, axis=1)  # an all-zero row: the point frozen, no extra work
+            L[:, L_XREF] = np.maximum(x, 0.0)  # the point is mid-overlap, each body's surface point at a gap
+            L[:, L_W01:] = lev
+            self.couple[pair] = 0.0
+            J_old = self.J[pair].copy()
+            # the engine's velocity offset of the last step's timing correction J, applied at the point
+            # of x_J, read at this step's point (e = x_J - x_ref away): J(0) M^-1 J(e)^T J = W J + e W01 J
+            # (LEVER_DOC; first order in e), in place of the last step's W J
+            # (not after an island step: an island's dv_corr holds its cross terms W_pq J_q)
+            on = (L[:, L_ON] != 0.0) & np.any(J_old != 0.0, axis=1) & ~self.in_island[pair]
+            if np.any(on):
+                q = pair[on]
+                e = self.x_J[q] - L[on, L_XREF]
+                W01 = L[on, L_W01:L_W01 + 9].reshape(-1, 3, 3)
+                self.dv_corr[q] = (np.einsum("kij,kj->ki", W[on], J_old[on])
+                                   + e[:, None] * np.einsum("kij,kj->ki", W01, J_old[on]))
+                # and g0 = J1 qdot carries J1 M^-1 J(e)^T J = W01^T J + e W11 J of it
+                W11 = L[on, L_W11:L_W11 + 9].reshape(-1, 3, 3)
+                L[on, L_G0:L_G0 + 3] -= (np.einsum("kji,kj->ki", W01, J_old[on])
+                                         + e[:, None] * np.einsum("kij,kj->ki", W11, J_old[on]))
         t0 = float(kin.t)
         info = {"rows": k, "substeps": 0, "segments": 0, "onsets": 0, "ends": 0, "settled": 0,
                 "settled_iterations": 0, "island_rows": 0}
         self.in_island[:] = False
         multi = self._island_rows(pair, t0, n, v, W) if self._coupling is not None and k > 1 else None
         if multi is not None:
-            out = self._step_with_islands(multi, pair, x, n, point, v, vc, W, Wc, a, t0, info)
+            out = self._step_with_islands(multi, pair, x, n, point, v, vc, W, Wc, a, t0, info, L)
         else:
-            out = self._step_rows(pair, x, n, point, v, vc, W, Wc, a, t0, info)
+            out = self._step_rows(pair, x, n, point, v, vc, W, Wc, a, t0, info, L)
+        if L is not None:
+            # the last step's timing correction is removed in this step's force at this step's point;
+            # it was applied at the point of x_J: put the removal there (LEVER_DOC: PD = d (-J),
+            # d = x_J - x_ref), so that it takes back the angular impulse it gave
+            own = (L[:, L_ON] != 0.0) & ~self.in_island[pair]
+            if np.any(own):
+                q = pair[own]
+                PD = -(self.x_J[q] - L[own, L_XREF])[:, None] * J_old[own]
+                self.couple[q] += 0.5 * np.cross(n[own], PD)
+            self.x_J[pair] = L[:, L_XREF]
+            out.torque = self.couple[pair] / self.dt
         if self._coupling is not None:  # the forces the adapters hold into the next step's a_ext
             self._held_force[:] = 0.0
             held = self.held(pair, t0 + self.dt)
@@ -268,18 +315,19 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         resolved = self.tau_est[pair] >= STEPS_PER_CONTACT_MIN * self.dt
         return act & (self.settled[pair] | resting | resolved)
 
-    def _step_rows(self, pair, x, n, point, v, vc, W, Wc, a, t0, info) -> ContactForces:
-        """Each row on its own (the compiled kernel or the numpy path per law)."""
+    def _step_rows(self, pair, x, n, point, v, vc, W, Wc, a, t0, info, L=None) -> ContactForces:
+        """Each row on its own (the compiled kernel or the numpy path per law);
+        L (k, NL): the rows' moving contact points (state.LEVER_DOC) or None."""
         k = pair.shape[0]
         if self._all_kernel:
-            force = self._step_compiled(pair, x, n, v, vc, W, Wc, a, t0, info)
+            force = self._step_compiled(pair, x, n, v, vc, W, Wc, a, t0, info, L)
             force /= self.dt
         else:
             force = np.zeros((k, 3))
             krows = np.flatnonzero(self._kg_of_pair[pair] >= 0)
             if krows.size:
                 P = self._step_compiled(pair[krows], x[krows], n[krows], v[krows], vc[krows], W[krows], Wc[krows],
-                                        a[krows], t0, info)
+                                        a[krows], t0, info, None if L is None else L[krows])
                 force[krows] = P / self.dt
             for g, law in self._groups.items():
                 if self._kernel_law[g] is not None:
@@ -288,7 +336,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
                 if rows.size == 0:
                     continue
                 P = self._step_group(g, law, pair[rows], x[rows], n[rows], v[rows], vc[rows], W[rows], Wc[rows],
-                                     a[rows], t0, info)
+                                     a[rows], t0, info, None if L is None else L[rows])
                 force[rows] = P / self.dt
         self.last_step_info = info
         return ContactForces(force=force, point=point.copy(), pair=pair.copy())
@@ -347,13 +395,15 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             rest[r] = vn <= SETTLED_SPEED_RATIO * vx
         return rest
 
-    def _step_with_islands(self, multi, pair, x, n, point, v, vc, W, Wc, a, t0, info) -> ContactForces:
+    def _step_with_islands(self, multi, pair, x, n, point, v, vc, W, Wc, a, t0, info, L=None) -> ContactForces:
+        """Rows alone as _step_rows (with their moving contact points L), islands
+        by engines._contacts.islands (the point frozen over the step there)."""
         k = pair.shape[0]
         force = np.zeros((k, 3))
         alone = np.flatnonzero(multi < 0)
         if alone.size:
             out = self._step_rows(pair[alone], x[alone], n[alone], point[alone], v[alone], vc[alone], W[alone],
-                                  Wc[alone], a[alone], t0, info)
+                                  Wc[alone], a[alone], t0, info, None if L is None else L[alone])
             force[alone] = out.force
         keys_all, blocks = self._coupling
         for lab in np.unique(multi[multi >= 0]):

@@ -23,7 +23,7 @@ import numpy as np
 from msf_contact.laws import ForceLaw
 
 from .state import (
-    _P, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, MAX_SEGMENTS, NY, ROOT_ITER, ROOT_TOL,
+    _G, _P, _PD, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, L_G0, L_ON, L_W01, L_W11, L_XREF, MAX_SEGMENTS, NY, ROOT_ITER, ROOT_TOL,
     SETTLE_AFTER_DURATIONS, SETTLED_FD_REL, SETTLED_NEWTON_MAX, SETTLED_SPEED_RATIO, SETTLED_VTOL, _dot,
     _msf_inline, _tangent_basis,
 )
@@ -42,11 +42,18 @@ class _Batch:
     a: np.ndarray  # (k, 3)
     paper: np.ndarray  # (k,) bool
     onset: dict = field(default_factory=dict)  # key -> (k,)
+    L: np.ndarray | None = None  # (k, NL): the moving contact point (state.LEVER_DOC), None: none
 
     def __post_init__(self):
         self.T = np.stack([self.t1, self.t2], axis=1)  # tangent basis (k, 2, 3)
         self.any_paper = bool(np.any(self.paper))
         self.inline = _msf_inline(self.law)
+        self.lever = self.L is not None and bool(np.any(self.L[:, L_ON] != 0.0))
+        if self.lever:
+            k = self.L.shape[0]
+            self.W01 = self.L[:, L_W01:L_W01 + 9].reshape(k, 3, 3)
+            self.W11 = self.L[:, L_W11:L_W11 + 9].reshape(k, 3, 3)
+            self.on = self.L[:, L_ON] != 0.0
 
     @property
     def plain_tangential(self) -> bool:
@@ -55,7 +62,8 @@ class _Batch:
 
     def sub(self, idx) -> "_Batch":
         return _Batch(self.law, self.n[idx], self.t1[idx], self.t2[idx], self.W[idx], self.Wc[idx],
-                      self.a[idx], self.paper[idx], {k: v[idx] for k, v in self.onset.items()})
+                      self.a[idx], self.paper[idx], {k: v[idx] for k, v in self.onset.items()},
+                      None if self.L is None else self.L[idx])
 
     def _forces(self, x, xd):
         """F_n after the separation rule, its elastic part F_n(x, 0) (k,) [N],
@@ -106,7 +114,23 @@ class _Batch:
         f = Fn[:, None] * n + Ft
         dy = np.empty_like(y)
         dy[:, _X] = xd
-        dy[:, _V] = np.einsum("kij,kj->ki", self.W, f) + self.a
+        if self.lever:
+            # the contact point moves with the overlap (state.LEVER_DOC): v' = W(d) f + a + x' g,
+            # g' = (W01^T + d W11) f, PD' = d f, d = max(x, 0) - max(x_ref, 0), d' = x' while x > 0
+            on = self.on[:, None]
+            d = (np.maximum(y[:, _X], 0.0) - self.L[:, L_XREF])[:, None]
+            A = np.einsum("kij,kj->ki", self.W01, f)
+            B = np.einsum("kji,kj->ki", self.W01, f)
+            C = np.einsum("kij,kj->ki", self.W11, f)
+            ex = d * (A + B + d * C) + np.where(y[:, _X] > 0.0, xd, 0.0)[:, None] * y[:, _G]
+            Wf = np.einsum("kij,kj->ki", self.W, f)
+            dy[:, _V] = np.where(on, Wf + ex + self.a, Wf + self.a)
+            dy[:, _G] = np.where(on, B + d * C, 0.0)
+            dy[:, _PD] = np.where(on, d * f, 0.0)
+        else:
+            dy[:, _V] = np.einsum("kij,kj->ki", self.W, f) + self.a
+            dy[:, _G] = 0.0
+            dy[:, _PD] = 0.0
         dy[:, _S] = sd
         dy[:, _VC] = np.einsum("kij,kj->ki", self.Wc, f) + self.a
         dy[:, _P] = f
@@ -212,11 +236,11 @@ class NumpyPath:
     """ContactManager's numpy path (mixed into :class:`engines._contacts.ContactManager`,
     whose per-pair state it reads and writes)."""
 
-    def _step_group(self, g, law, p, x_eng, n, v, vc, W, Wc, a, t0, info):
+    def _step_group(self, g, law, p, x_eng, n, v, vc, W, Wc, a, t0, info, L=None):
         dt = self.dt
         k = p.shape[0]
         t1, t2 = _tangent_basis(n)
-        batch = _Batch(law, n, t1, t2, W, Wc, a, self._paper[p])
+        batch = _Batch(law, n, t1, t2, W, Wc, a, self._paper[p], L=L)
         act = self.active[p].copy()
         # the engine's velocities include last step's timing correction: remove it
         v = v - self.dv_corr[p]
@@ -235,6 +259,11 @@ class NumpyPath:
         ls, lt = np.linalg.norm(s, axis=1), np.linalg.norm(s_t, axis=1)
         y[:, _S] = np.where((lt > 0)[:, None], s_t * (ls / np.where(lt > 0, lt, 1.0))[:, None], 0.0)
         y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT] = self.W_el[p], self.W_visc[p], self.Q_t[p], self.W_t[p]
+        if L is not None:
+            y[:, _G] = L[:, L_G0:L_G0 + 3]
+            # v_rel at the internal overlap's point, not the engine's (state.LEVER_DOC)
+            on = L[:, L_ON] != 0.0
+            y[on, _V] += y[on, _G] * (np.maximum(x0[on], 0.0) - L[on, L_XREF])[:, None]
         onset = self._onset[g]
         if onset:
             batch.onset = {key: arr[self._pos[p]] for key, arr in onset.items()}
@@ -286,6 +315,7 @@ class NumpyPath:
             for r in np.flatnonzero(np.any(y[:, _P] != 0.0, axis=1)):
                 self._hist.setdefault(int(p[r]), []).append((t0, float(Pn[r])))
         impulse = y[:, _P] + J - self.J[p]
+        self.couple[p] = 0.5 * np.cross(batch.n, y[:, _PD])  # n x PD / 2 (state.LEVER_DOC)
         self.J[p] = J
         self.dv_corr[p] = np.einsum("kij,kj->ki", W, J)
         self.dvc_corr[p] = np.einsum("kij,kj->ki", Wc, J)
@@ -442,6 +472,9 @@ class NumpyPath:
         tc = np.where(tc <= rem, tc, np.inf)
         tadv = np.where(np.isfinite(tc), tc, rem)
         y[fi, _X] = x0 + xd0 * tadv + c * tadv * tadv
+        if getattr(batch, "lever", False):  # the moving contact point (state.LEVER_DOC): v += g (max(x_new, 0) - max(x_old, 0))
+            j = fi[batch.on[fi]]
+            y[j, _V] += y[j, _G] * (np.maximum(y[j, _X], 0.0) - np.maximum(x0[batch.on[fi]], 0.0))[:, None]
         y[fi, _V] += a * tadv[:, None]
         y[fi, _VC] += a * tadv[:, None]
         y[fi, _PI] += y[fi, _P] * tadv[:, None]

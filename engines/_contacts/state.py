@@ -73,7 +73,38 @@ MAX_SEGMENTS = 10000
 _X, _V, _S, _VC, _P = 0, slice(1, 4), slice(4, 7), slice(7, 10), slice(10, 13)
 _WEL, _WVI, _Q, _WT = 13, 14, 15, 16
 _PI = slice(17, 20)  # int_0^t P dt' [N s^2]: first moment of the force, for the timing correction
-NY = 20
+_G = slice(20, 23)  # g = J1 qdot [m/s per m]: the contact-point velocity's rate of change with the overlap
+_PD = slice(23, 26)  # int_0^t (x - x_ref) f dt' [N m s]: the force's moment about the moving contact point
+NY = 26
+
+LEVER_DOC = """The contact point moves with the overlap (engines._contacts, issue 10 item 3).
+
+The engine gives the contact point p0 and W = J0 M^-1 J0^T at the step-start
+geometry (the engine's overlap x_e; the point is the middle of the overlap,
+each body's own surface point at a gap: engines._geometry.Detection.of_sphere).
+Inside the step the overlap changes by d = max(x, 0) - max(x_e, 0) and the
+point moves with it: on body 1 by +d n/2 from its centre, on body 2 by -d n/2
+(for spheres the lever arms are R_i - max(x, 0)/2, as in the reference
+solver, msf_contact.solver (45), (47)); d' = x' while x > 0, else 0.
+For rigid bodies the contact-point Jacobian is then J(d) = J0 + d J1 with
+J1 = -[n]x (Jr_1 + Jr_2)/2 (Jr_i the rotational Jacobians; a point p + e of
+a body has the velocity Jacobian Jp - [e]x Jr). The relative contact-point
+velocity v = J(d) qdot obeys, with qdot' = M^-1 (J(d)^T f + Q_ext),
+
+    v' = W(d) f + a_ext + d' g,   W(d) = W + d (W01 + W01^T) + d^2 W11,
+    g' = (W01^T + d W11) f,       g = J1 qdot,  g(0) = g0,
+
+W01 = J0 M^-1 J1^T, W11 = J1 M^-1 J1^T (the adapters give W01, W11, g0 per
+row; for free bodies :func:`lever_terms_free`). The generalised impulse on
+the bodies is J0^T P + J1^T PD with PD = int d f dt: the force P at p0 and,
+on both bodies alike, the angular impulse n x PD / 2 (world axes) -- the
+torque of f about the moved point, (r_i0 +- d n/2) x (+-f). Free flight
+moves the point only where x > 0: v += g d. Left out: the
+bodies' orientation change inside the step (a sphere's contact point does
+not depend on it), the normal's turn (sphere-sphere: n follows c1 - c2;
+second order for the impacts of the acceptance, a plane keeps n), the
+coupling of W_com (J_com M^-1 J1^T = 0 for free bodies) and the settled
+path (a resting contact's d over a step is ~0)."""
 
 
 def effective_inverse_inertia_free(m1, I1_world, r1, m2, I2_world, r2) -> np.ndarray:
@@ -203,3 +234,26 @@ def _name(b):
 def _plain(v):
     a = np.asarray(v)
     return a.tolist() if a.ndim else a.item() if hasattr(a, "item") else v
+
+
+#: Columns of a row's moving-contact-point data (LEVER_DOC), as engines._kernel's L_*.
+L_ON, L_XREF, L_W01, L_W11, L_G0, NL = 0, 1, 2, 11, 20, 23
+
+
+def lever_terms_free(n, r1, Iinv1, w1, r2, Iinv2, w2) -> np.ndarray:
+    """W01, W11 (row-major) and g0 of LEVER_DOC for pairs of free rigid bodies
+    (k, 21): n (k, 3) unit normal from body 2 to body 1; r_i (k, 3) [m] from
+    body i's centre of mass to the contact point; Iinv_i (k, 3, 3) [1/(kg m^2)]
+    inverse inertia in world axes (zeros for a fixed body or one that does not
+    turn); w_i (k, 3) [rad/s] angular velocities.
+
+    With Jr_i = the body's angular velocity, J0 = [v1 - [r1]x w1] - [v2 - [r2]x w2]
+    and J1 = -[n]x (w1 + w2)/2:
+    W01 = (-[r1]x Iinv1 [n]x + [r2]x Iinv2 [n]x)/2, W11 = -[n]x (Iinv1 + Iinv2) [n]x / 4,
+    g0 = (w1 + w2) x n / 2."""
+    nx = _skew(n)
+    W01 = 0.5 * (-_skew(r1) @ Iinv1 @ nx + _skew(r2) @ Iinv2 @ nx)
+    W11 = -0.25 * (nx @ (Iinv1 + Iinv2) @ nx)
+    g0 = 0.5 * np.cross(w1 + w2, n)
+    k = n.shape[0]
+    return np.concatenate([W01.reshape(k, 9), W11.reshape(k, 9), g0], axis=1)

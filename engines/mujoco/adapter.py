@@ -102,6 +102,7 @@ import mujoco
 import numpy as np
 
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
+from engines._contacts.state import lever_terms_free
 from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box_face, sphere_plane, sphere_sphere
 from engines.base import (
@@ -456,6 +457,8 @@ class MujocoAdapter(EngineAdapter):
         self._is_fast[self._fast.index] = True
         self._slow = [p for p in self._pairs if not self._is_fast[p.index]]
         self._apply_fast: tuple | None = None
+        self._apply_couple: tuple | None = None  # (bodies (b,), dofs (b,), world torques (b, 3)) of the step
+        self._x_last = np.zeros(P)  # max(x, 0) of each pair in the last step (0: not a candidate) [m]
         #: the free group's per-step work compiled (engines.mujoco._kernels) or in numpy
         self.compiled = bool(compiled)
         if self.compiled:
@@ -647,6 +650,8 @@ class MujocoAdapter(EngineAdapter):
                 self._kernels.apply(data.qfrc_passive, data.xipos, data.xanchor, data.xmat, *self._apply_fast)
             else:
                 self._fast.apply(data, *self._apply_fast)
+        if self._apply_couple is not None:
+            self._add_couples(data, data.qfrc_passive, *self._apply_couple)
         for b1, b2, fixed2, F, r1, r2 in self._apply:
             mujoco.mj_applyFT(model, data, F, _ZERO3, data.xipos[b1] + r1, b1, data.qfrc_passive)
             if not fixed2:
@@ -850,10 +855,13 @@ class MujocoAdapter(EngineAdapter):
             blocks.append(slow)
         self._apply = []
         self._apply_fast = None
+        self._apply_couple = None
         # the manager is called every step, also without candidates (it completes records then)
         kin = self._assemble(blocks)
+        kin.lever = self._lever(kin)
         out: ContactForces = self.manager.step(kin)
         self._last_kin, self._last_out = kin, out
+        Qc = self._couples(out)
         self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
         self.last_forces = out if kin.pair.size else None
         pair = np.asarray(out.pair, dtype=int)
@@ -863,9 +871,10 @@ class MujocoAdapter(EngineAdapter):
             return
         # what the next step's a_ext leaves out (module docstring): the generalised impulse
         # J_q^T P_q of every pair's force of this step, except the held forces (held_forces),
-        # which stay in the other pairs' a_ext as their prediction for the next step
+        # which stay in the other pairs' a_ext as their prediction for the next step; the
+        # couples of the moving contact points (LEVER_DOC) all leave it
         keep = hit & held_forces(self.manager, pair, float(d.time) + dt)
-        Q = np.zeros(m.nv)
+        Q = np.zeros(m.nv) if Qc is None else Qc
         fast = hit & self._is_fast[pair]
         if np.any(fast):
             self._apply_fast = self._fast.forces(d, pair[fast], force[fast], W_fast)
@@ -905,12 +914,15 @@ class MujocoAdapter(EngineAdapter):
         self._keep_points(points)
         self._apply = []
         self._apply_fast = None
+        self._apply_couple = None
         if slow is None and fast is not None:
             kin = ContactKinematics(t=float(d.time), **fast)  # the group's rows are in pair order
         else:
             kin = self._assemble([b for b in (fast, slow) if b is not None])
+        kin.lever = self._lever(kin)
         out: ContactForces = mgr.step(kin)
         self._last_kin, self._last_out = kin, out
+        Qc = self._couples(out)
         self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
         self.last_forces = out if kin.pair.size else None
         pair = np.asarray(out.pair, dtype=np.int64)
@@ -926,11 +938,12 @@ class MujocoAdapter(EngineAdapter):
             return
         if todo[0].shape[0]:
             self._apply_fast = tuple(todo)
-        if not n_unheld:
+        if not n_unheld and Qc is None:
             if self._slow:
                 self._slow_forces(pair, force, hit, keep, points, None)
             return
-        Q = np.zeros(m.nv)  # the impulses that leave the next step's a_ext
+        # the impulses that leave the next step's a_ext (with the couples of the moving contact points)
+        Q = np.zeros(m.nv) if Qc is None else Qc
         if fast is not None:
             sub = K.free_forces(self._gi, self._group_of, pair, force, hit, keep, True, p1, p2, d.xipos)
             K.apply(Q, d.xipos, d.xanchor, d.xmat, *sub)
@@ -946,6 +959,72 @@ class MujocoAdapter(EngineAdapter):
             for i, J in jacs:
                 self._last_dv[i] = J @ dq
         K.held_dv(self._last_dv, pair, keep, kin.W, force, dt)
+
+    def _world_inverse_inertia(self, b) -> np.ndarray:
+        """I^-1 = R diag(1/I) R^T in world axes (k, 3, 3) of the bodies b (k,)."""
+        R = self.data.ximat[b].reshape(-1, 3, 3)
+        return (R * (1.0 / self.model.body_inertia[b])[:, None, :]) @ R.transpose(0, 2, 1)
+
+    def _lever(self, kin: ContactKinematics) -> np.ndarray | None:
+        """The moving contact point of the free group's rows (engines._contacts.state.LEVER_DOC,
+        lever_terms_free: W01, W11, g0 (k, 21) from the lever arms p_i - xipos_i, the world
+        inverse inertias and cvel's angular velocities); zeros (a point frozen over the step)
+        for the slow rows and for the rows the manager settled in the last step (a resting
+        contact's overlap does not move within a step, and the resting path stays as cheap).
+        The finite-difference a_ext of these rows, (v_rel - last v_rel - last dv)/dt, compares
+        velocities at two different points when the overlap changed: it loses that part,
+        g0 (max(x, 0) - max(x_last, 0))/dt, which the manager now integrates itself (d' g)."""
+        pair = np.asarray(kin.pair, dtype=int)
+        live = self._is_fast[pair] & ~self.manager.settled[pair]
+        xpos = np.maximum(np.asarray(kin.x, dtype=float), 0.0)
+        x_last = self._x_last[pair]
+        self._x_last[:] = 0.0
+        self._x_last[pair] = xpos
+        if not np.any(live):
+            return None
+        f, d = self._fast, self.data
+        out = np.zeros((pair.size, 21))
+        q = pair[live]
+        gi = np.searchsorted(f.index, q)
+        b1, b2, free2 = f.b1[gi], f.b2[gi], f.free2[gi]
+        I1 = self._world_inverse_inertia(b1)
+        I2 = np.zeros_like(I1)
+        if np.any(free2):
+            I2[free2] = self._world_inverse_inertia(b2[free2])
+        w2 = np.where(free2[:, None], d.cvel[b2, :3], 0.0)
+        out[live] = lever_terms_free(np.asarray(kin.normal)[live], self._p1[q] - d.xipos[b1], I1, d.cvel[b1, :3],
+                                     self._p2[q] - d.xipos[b2], I2, w2)
+        kin.a_ext = np.array(kin.a_ext, dtype=float)
+        kin.a_ext[live] -= out[live, 18:21] * ((xpos - x_last)[live] / self.timestep)[:, None]
+        return out
+
+    def _couples(self, out: ContactForces) -> np.ndarray | None:
+        """Keep the step's couples of the moving contact points (ContactForces.torque, on body 1
+        and body 2 alike) for the hook, and return their generalised force (nv,) [N m] (None:
+        no couple)."""
+        if out.torque is None:
+            return None
+        pair = np.asarray(out.pair, dtype=int)
+        on = np.flatnonzero(self._is_fast[pair] & np.any(out.torque != 0.0, axis=1))
+        if on.size == 0:
+            return None
+        f = self._fast
+        gi = np.searchsorted(f.index, pair[on])
+        tq = np.asarray(out.torque, dtype=float)[on]
+        free2 = f.free2[gi]
+        b = np.concatenate([f.b1[gi], f.b2[gi][free2]])
+        dof = np.concatenate([f.dof1[gi], f.dof2[gi][free2]])
+        tq = np.concatenate([tq, tq[free2]])
+        self._apply_couple = (b, dof, tq)
+        Q = np.zeros(self.model.nv)
+        self._add_couples(self.data, Q, b, dof, tq)
+        return Q
+
+    @staticmethod
+    def _add_couples(d, q, b, dof, tq) -> None:
+        """Add world torques tq (b, 3) on free bodies b to q (nv,): a free joint's angular dofs
+        take the torque in body axes, xmat^T tq (as _FreeGroup.apply)."""
+        np.add.at(q, dof[:, None] + np.arange(3, 6), np.einsum("kji,kj->ki", d.xmat[b].reshape(-1, 3, 3), tq))
 
     def _slow_rows(self, required) -> tuple[dict | None, dict, list]:
         """The candidate rows of the pairs read through Jacobians (a dict of

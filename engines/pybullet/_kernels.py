@@ -133,9 +133,12 @@ def fast_rows(f, j1, j2, s1, r1, plane, s2, size2, com, rot, v, w, b_free, inv_m
             for d in range(3):
                 nrm[d] /= dist
             x = R1 + R2 - dist
-        # the middle of the overlap (of the gap): engines._geometry.Detection.of_sphere
+        # the middle of the overlap (of the gap): engines._geometry.Detection.of_sphere; on a
+        # plane, body 1's own point (its surface point at a gap, as MuJoCo's adapter), so that
+        # the lever arm is R1 - max(x, 0)/2 at every x (the timing correction is removed at
+        # the lever it was applied at; LEVER_DOC)
         lift = R1 - 0.5 * max(x, 0.0)
-        gap = min(x, 0.0)
+        gap = 0.0 if plane[q] else min(x, 0.0)
         for d in range(3):
             p1 = c1[d] - lift * nrm[d]
             p[d] = 0.5 * (p1 + (p1 + gap * nrm[d]))

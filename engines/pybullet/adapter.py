@@ -81,6 +81,8 @@ from engines import _geometry
 from engines._geometry import cross_rows
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance, effective_inverse_inertia_free
 from engines._contacts.islands import TOUCH_TOL, push_reach
+from engines._contacts.state import lever_terms_free
+from engines.pybullet.scenes import MAX_COORDINATE_VELOCITY
 from engines.base import STEPS_PER_CONTACT_MIN, ContactKinematics, EngineAdapter, PairSpec, check_law_curvature
 
 #: A free body's centre of mass at a step start must be the last one plus dt
@@ -310,6 +312,13 @@ class PybulletAdapter(EngineAdapter):
                 I = np.asarray(info[2], float)
                 self._b_inv_I[j] = np.where(I > 0, 1.0 / np.where(I > 0, I, 1.0), 0.0)
         self._b_free = ~self._b_fixed & ~self._b_link
+        # pybullet clamps every coordinate speed of a multibody, a base's spin included, at
+        # changeDynamics(maxJointVelocity) (btMultiBody::m_maxCoordinateVelocity, 100 rad/s by
+        # default in 3.2.x; measured: a torque impulse for 1,000 rad/s leaves 100 rad/s). A bead
+        # leaves an oblique impact spinning at ~1e5 rad/s, so the free bodies the adapter manages
+        # get MAX_COORDINATE_VELOCITY (engines.pybullet.scenes), far above any valid impact.
+        for j in np.flatnonzero(self._b_free):
+            pb.changeDynamics(int(body_list[j][0]), -1, maxJointVelocity=MAX_COORDINATE_VELOCITY, physicsClientId=c)
         fast = []
         for i, ((s1, s2), (b1, b2)) in enumerate(zip(self._shapes, self._bodies)):
             j1, j2 = slot[b1], slot[b2]
@@ -318,6 +327,7 @@ class PybulletAdapter(EngineAdapter):
                     and pb.getNumJoints(b1[0], physicsClientId=c) == 0):
                 fast.append(i)
         self._fast = np.array(fast, int)
+        self._x_last = np.zeros(len(self._bodies))  # max(x, 0) of each pair in the last step (0: not a candidate) [m]
         self._is_fast = np.zeros(len(self._bodies), bool)
         self._is_fast[self._fast] = True
         self._slow = [i for i in range(len(self._bodies)) if not self._is_fast[i]]
@@ -511,7 +521,8 @@ class PybulletAdapter(EngineAdapter):
         return pose.com + pose.rot @ shape.pos, pose.rot @ shape.rot
 
     def _detect(self, i, poses, margin=math.inf):
-        """(x, n body2->body1, point mid-overlap) of pair i (:mod:`engines._geometry`)."""
+        """(x, n body2->body1, point mid-overlap) of pair i (:mod:`engines._geometry`); against a
+        plane or a box face, the sphere's surface point at a gap."""
         (s1, s2) = self._shapes[i]
         c1, R1 = self._world_shape(s1, poses[0])
         c2, R2 = self._world_shape(s2, poses[1])
@@ -527,7 +538,11 @@ class PybulletAdapter(EngineAdapter):
             det = _geometry.sphere_box_face(c1, r1, c2, R2, s2.size, margin=margin)
         if flip:
             det = det.swapped()
-        return float(det.x[0]), det.normal[0], det.point[0]
+        if s2.kind == "sphere":
+            return float(det.x[0]), det.normal[0], det.point[0]
+        # on a plane or a box face, the sphere's own point (mid-overlap; its surface point at a
+        # gap), as the fast rows and MuJoCo's adapter: the lever arm R - max(x, 0)/2 (LEVER_DOC)
+        return float(det.x[0]), det.normal[0], (det.point2 if flip else det.point1)[0]
 
     def _gravity(self) -> np.ndarray:
         par = pb.getPhysicsEngineParameters(physicsClientId=self.client)
@@ -587,7 +602,8 @@ class PybulletAdapter(EngineAdapter):
         if pl.size:
             det = _geometry.sphere_plane(c1[pl], self._f_r1[pl], c2[pl],
                                          np.einsum("kij,kj->ki", rot2[pl], self._f_size2[pl]))
-            x[pl], nrm[pl], point[pl] = det.x, det.normal, det.point
+            # body 1's own point (mid-overlap; its surface point at a gap), as the compiled fast_rows
+            x[pl], nrm[pl], point[pl] = det.x, det.normal, det.point1
         if sp.size:
             det = _geometry.sphere_sphere(c1[sp], self._f_r1[sp], c2[sp], self._f_size2[sp, 0])
             x[sp], nrm[sp], point[sp] = det.x, det.normal, det.point
@@ -674,6 +690,7 @@ class PybulletAdapter(EngineAdapter):
         kin = ContactKinematics(t=self.time, **{key: np.reshape(val, (-1,) + shapes[key])
                                                 for key, val in cat.items()})
         kin.pair = np.asarray(kin.pair, int)
+        kin.lever = self._lever(bodies, kin)
         self._cur_bodies = bodies
         out = self.manager.step(kin)
         self._last_kin, self._last_out = kin, out
@@ -686,8 +703,70 @@ class PybulletAdapter(EngineAdapter):
             self._cross_dv(bodies, ph, F * dt, kin.W[hit])
             self.impulse[ph] += F * dt
             self._apply(bodies, ph, F, np.asarray(out.point, float)[hit])
+            if out.torque is not None:
+                self._apply_couples(bodies, ph, np.asarray(out.torque, float)[hit])
         pb.stepSimulation(self.client)
         self._steps += 1
+
+    def _lever(self, bodies: _Bodies, kin: ContactKinematics) -> np.ndarray | None:
+        """The moving contact point of the rows of free bodies (engines._contacts.state.LEVER_DOC,
+        lever_terms_free: W01, W11, g0 (k, 21) from the lever arms point - com, the world inverse
+        inertias R diag(1/I) R^T and the angular velocities); zeros (the point frozen over the
+        step) for rows with a link of a multibody and for the rows the manager settled in the last
+        step (a resting contact's overlap does not move within a step; the resting path stays as
+        cheap). A fixed body turns with neither.
+        The finite-difference a_ext of these rows, (v_rel - last v_rel - last dv)/dt, compares
+        velocities at two different points when the overlap changed: it loses that part,
+        g0 (max(x, 0) - max(x_last, 0))/dt, which the manager now integrates itself (d' g)."""
+        pair = np.asarray(kin.pair, int)
+        j1, j2 = self._slot[pair, 0], self._slot[pair, 1]
+        live = ~self.manager.settled[pair] & ~self._b_link[j1] & ~self._b_link[j2] & (
+            self._b_free[j1] | self._b_free[j2])
+        xpos = np.maximum(np.asarray(kin.x, dtype=float), 0.0)
+        x_last = self._x_last[pair]
+        self._x_last[:] = 0.0
+        self._x_last[pair] = xpos
+        if not np.any(live):
+            return None
+        out = np.zeros((pair.size, 21))
+        j1, j2 = j1[live], j2[live]
+        pt = np.asarray(kin.point)[live]
+
+        def inv_inertia(j):
+            R = bodies.rot[j]
+            Iinv = (R * self._b_inv_I[j][:, None, :]) @ R.transpose(0, 2, 1)
+            return np.where(self._b_free[j][:, None, None], Iinv, 0.0)
+
+        w1 = np.where(self._b_free[j1][:, None], bodies.w[j1], 0.0)
+        w2 = np.where(self._b_free[j2][:, None], bodies.w[j2], 0.0)
+        out[live] = lever_terms_free(np.asarray(kin.normal)[live], pt - bodies.com[j1], inv_inertia(j1), w1,
+                                     pt - bodies.com[j2], inv_inertia(j2), w2)
+        kin.a_ext = np.array(kin.a_ext, dtype=float)
+        kin.a_ext[live] -= out[live, 18:21] * ((xpos - x_last)[live] / self._dt)[:, None]
+        return out
+
+    def _apply_couples(self, bodies: _Bodies, ph, torque) -> None:
+        """Apply the couples of the moving contact points (ContactForces.torque (k, 3) [N m],
+        world axes, on body 1 and body 2 alike) to the free bodies of the pairs ph (k,), and add
+        their change of each pair's own contact-point velocity to the next step's a_ext
+        bookkeeping (dw_i = I_i^-1 tq dt, dv = dw_1 x r_1 - dw_2 x r_2)."""
+        on = np.flatnonzero(np.any(torque != 0.0, axis=1))
+        if on.size == 0:
+            return
+        c, world = self.client, pb.WORLD_FRAME
+        for q in on.tolist():
+            i = int(ph[q])
+            tq = torque[q]
+            dv = np.zeros(3)
+            for side, sign in ((0, 1.0), (1, -1.0)):
+                j = int(self._slot[i, side])
+                if not self._b_free[j] or self._b_link[j]:
+                    continue
+                pb.applyExternalTorque(int(self._b_uid[j]), -1, tq.tolist(), world, c)
+                R = bodies.rot[j]
+                dw = R @ (self._b_inv_I[j] * (R.T @ tq)) * self._dt
+                dv += sign * np.cross(dw, self._pt[i] - bodies.com[j])
+            self._last_dv[i] += dv
 
     def _coupling_blocks(self, pp, pq):
         """The manager's coupling blocks (ContactManager.set_coupling) for free
