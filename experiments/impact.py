@@ -92,10 +92,9 @@ def add_impact_arguments(p: argparse.ArgumentParser) -> None:
                    help="what computes the impact (default reference: the reference solver; closed-form: "
                         "the paper's (87), (89), (90), (95) for a sphere on a half-space)")
     p.add_argument("--law", choices=list(LAWS), default="msf",
-                   help="force law (default msf). Every law uses the pair's effective modulus of --convention: "
-                        "by default msf, the paper's (9) without 1 - nu^2, so --law hertz is softer than "
-                        "textbook Hertz (durations (1 - nu^2)^(-2/5): 3.8 %% longer at nu = 0.3, 11.6 %% at "
-                        "0.49); --convention hertz gives the textbook E* = 1/((1 - nu1^2)/E1 + (1 - nu2^2)/E2)")
+                   help="force law (default msf). Every law, hertz included, uses the effective modulus of "
+                        "--convention: by default the paper's (9) without 1 - nu^2, softer than textbook Hertz; "
+                        "--convention hertz gives the textbook E*")
     p.add_argument("--radius", type=number, default=DEFAULT_RADIUS, metavar="R",
                    help=f"ball radius [m] (default {DEFAULT_RADIUS})")
     p.add_argument("--mass", type=number, metavar="KG", help="ball mass [kg] (default: from the density)")

@@ -236,3 +236,35 @@ def test_rule_91_measurement(errata):
     assert abs(r["cor_91"] - 1) < 1e-8
     assert 0.09 < r["tg_complex"] <= 0.1 and r["cor_complex"] < 0.8
     assert np.isfinite([r["cor_91"], r["cor_complex"]]).all()
+
+
+#: Chung & Ooi test 3: spring-dashpot (linear oscillator) and Hunt-Crossley
+#: with the exact damping return e itself; the reference solver's COR is good
+#: to ~1e-10 (measured <= 3e-11 relative over the 20 cells).
+CHUNG_OOI_COR_RTOL = 1e-9
+#: Test 4, gross sliding: the compliant contact against the rigid-body limit
+#: e_t = 1 - mu (1 + e_n)/tan(theta); the remaining difference is the lever
+#: arm R - x/2 and the stick phase at onset (measured <= 3e-5 in cor_t and
+#: 1.5e-3 in spin).
+CHUNG_OOI_SLIDING_RTOL = 2e-3
+
+
+def test_chung_ooi_tests_3_and_4():
+    """Issue 12: tests 3-4 run in the suite, and test 3 is no longer circular
+    for MSF (tg(beta) from the paper's (88), not from the solver's own COR)."""
+    from experiments.scenarios import chung_ooi
+
+    cfg = chung_ooi.load({"scenario": "chung-ooi", "tests": {"run": [3, 4]}}, "chung_ooi.toml")
+    for cell in chung_ooi.cells(cfg):
+        (r,) = chung_ooi.run_cell(cell)
+        if cell["test"] == 3:
+            if cell["law"] in ("spring-dashpot", "hunt-crossley"):
+                assert r["cor_n"] == pytest.approx(cell["cor"], rel=CHUNG_OOI_COR_RTOL), cell
+            elif r["applies"] and cell["cor"] < 1:
+                # (89) overstates the model's COR: the solver returns less than the e whose (88) tg(beta) it got
+                assert 0.8 * cell["cor"] < r["cor_n"] < cell["cor"], cell
+            else:
+                assert r["applies"] == (cell["cor"] >= 0.5), cell  # (88) gives tg(beta) > 1/3 below e ~ 0.52
+        elif r["sliding_regime"]:
+            assert r["cor_t"] == pytest.approx(r["ref_cor_t_sliding"], rel=CHUNG_OOI_SLIDING_RTOL), cell
+            assert r["spin_out"] == pytest.approx(r["ref_spin_sliding"], rel=CHUNG_OOI_SLIDING_RTOL), cell
