@@ -1,0 +1,99 @@
+"""A robot model nobody here wrote, with MSF on every body-floor contact
+(issue 13): load an MJCF file (e.g. ``pybullet_data/mjcf/ant.xml`` or
+``humanoid.xml``), add a floor plane if it has none, exclude MuJoCo's own
+contact between the floor and every body whose geoms would touch it, and
+return one :class:`engines.base.PairSpec` per (geom, floor) with a law
+built for the curvature MuJoCo's narrow phase will report there: a sphere
+its radius, a capsule the sphere of its radius (MuJoCo reports a capsule on
+a plane as its segment's end spheres), a box the sphere of its edge radius
+(its corners). Other geoms (ellipsoids, cylinders, meshes: their curvature
+at the floor changes with the pose, and the engines keep one law per pair)
+are refused naming the geom and the floor.
+"""
+
+from __future__ import annotations
+
+import mujoco
+
+from engines.base import PairSpec
+from msf_contact.geometry import Curvature
+from msf_contact.laws import make_law
+from msf_contact.materials import ContactPair
+from msf_contact.shapes import DEFAULT_EDGE_RADIUS
+
+FLOOR = "floor"
+
+
+def _collides(m: mujoco.MjModel, g1: int, g2: int) -> bool:
+    return bool((m.geom_contype[g1] & m.geom_conaffinity[g2]) or (m.geom_contype[g2] & m.geom_conaffinity[g1]))
+
+
+def load_with_msf_floor(path: str, pair: ContactPair, *, law: str = "msf", edge_radius: float = DEFAULT_EDGE_RADIUS,
+                        floor_size: float = 50.0, **law_options):
+    """(model, data, pairs): the model at ``path`` with a floor geom named
+    ``"floor"`` (added, a plane at z = 0, if missing), a free joint on every
+    root body without a joint (as pybullet's ``loadMJCF`` makes it a free
+    base: the ant's torso), MuJoCo's own contact
+    with the floor excluded for every body that would touch it, and the MSF
+    pairs (geom, "floor") with laws of ``law`` for ``pair`` (body 1 the
+    robot's material, body 2 the floor's) and the curvature each geom shows
+    the floor. ``mj_forward`` has been called."""
+    spec = mujoco.MjSpec.from_file(str(path))
+    for body in spec.worldbody.bodies:  # pybullet's loadMJCF makes a root body without joints a free base
+        if not body.joints:
+            body.add_freejoint()
+    probe = spec.compile()
+    if mujoco.mj_name2id(probe, mujoco.mjtObj.mjOBJ_GEOM, FLOOR) < 0:
+        spec.worldbody.add_geom(name=FLOOR, type=mujoco.mjtGeom.mjGEOM_PLANE, size=[floor_size, floor_size, 0.1],
+                                contype=1, conaffinity=1)
+        probe = spec.compile()
+    fl = mujoco.mj_name2id(probe, mujoco.mjtObj.mjOBJ_GEOM, FLOOR)
+    geoms, bodies = [], set()
+    for g in range(probe.ngeom):
+        b = int(probe.geom_bodyid[g])
+        if b == 0 or not _collides(probe, g, fl):
+            continue
+        geoms.append(g)
+        bodies.add(b)
+    for b in sorted(bodies):
+        spec.add_exclude(bodyname1="world", bodyname2=probe.body(b).name)
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    mujoco.mj_forward(model, data)
+    laws: dict[float, object] = {}
+    pairs = []
+    for g in geoms:
+        name = model.geom(g).name
+        if not name:
+            raise ValueError(f"geom {g} of {path} touches the floor but has no name (a PairSpec names its geoms)")
+        t = int(model.geom_type[g])
+        if t in (mujoco.mjtGeom.mjGEOM_SPHERE, mujoco.mjtGeom.mjGEOM_CAPSULE):
+            R = float(model.geom_size[g, 0])
+        elif t == mujoco.mjtGeom.mjGEOM_BOX:
+            R = min(edge_radius, float(min(model.geom_size[g, :3])))
+        else:
+            raise ValueError(f"pair ({name!r}, {FLOOR!r}): a {mujoco.mjtGeom(t).name[7:].lower()} shows the floor a "
+                             "curvature that changes with its pose, and the engines keep one law per pair: give it "
+                             "the built-in contact (leave it out of the MSF pairs)")
+        if R not in laws:
+            laws[R] = make_law(law, pair, Curvature.sphere_on_plane(R), **law_options)
+        pairs.append(PairSpec(name, FLOOR, laws[R]))
+    if not pairs:
+        raise ValueError(f"no geom of {path} collides with the floor: nothing for MSF to do")
+    return model, data, pairs
+
+
+def mechanical_energy(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """Kinetic plus gravitational potential energy [J] (``mj_energyPos`` and
+    ``mj_energyVel`` with the energy flag on)."""
+    flags = model.opt.enableflags
+    model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
+    try:
+        mujoco.mj_energyPos(model, data)
+        mujoco.mj_energyVel(model, data)
+        return float(data.energy[0] + data.energy[1])
+    finally:
+        model.opt.enableflags = flags
+
+
+__all__ = ["FLOOR", "load_with_msf_floor", "mechanical_energy"]
