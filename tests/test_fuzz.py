@@ -120,9 +120,23 @@ ENGINE_CASES = [
 ]
 
 
+@pytest.fixture(scope="module")
+def warm_engines():
+    """One impact in each engine first: numba compiles the contact kernels
+    on the first call of a fresh clone (~15-60 s), which is not the work
+    the time bound is about."""
+    from engines.base import get_engine
+    from msf_contact import Body, ContactPair, Curvature, Material, make_law, preset
+
+    ball, plate = preset("polyurethane"), Material.rigid_body()
+    law = make_law("msf", ContactPair(ball, plate), Curvature.sphere_on_plane(0.01))
+    for name in ("mujoco", "pybullet"):
+        get_engine(name)(law, Body.sphere(ball, 0.01), Body.half_space(plate), 1.0)
+
+
 @pytest.mark.mujoco
 @pytest.mark.parametrize("engine, flag, value", ENGINE_CASES)
-def test_engine_flag_answered(capsys, engine, flag, value):
+def test_engine_flag_answered(capsys, warm_engines, engine, flag, value):
     argv = ["impact", "--engine", engine, flag, value, "--json"]
     assert_answered(*call(capsys, *argv), argv)
 
@@ -141,7 +155,7 @@ CORPUS = [
 
 
 @pytest.mark.parametrize("argv", CORPUS, ids=" ".join)
-def test_corpus_refused_in_one_line(capsys, argv):
+def test_corpus_refused_in_one_line(capsys, warm_engines, argv):
     """Each once hung, dumped usage, raised a traceback or printed absurd values."""
     code, out, errors, seconds = call(capsys, *argv, "--json")
     assert code == 2, (argv, code, out)
