@@ -134,6 +134,24 @@ def test_oblique_msf_tangential(angle):
     assert rel(rec.spin_out, ref.spin_out) <= OBLIQUE_RTOL, (rec.spin_out, ref.spin_out)
 
 
+#: Oblique impacts at robotics steps (1-2 ms, longer than the 1.5-1.7 ms
+#: contact): sub-cycled inside one or two steps, cor_n, cor_t and spin_out
+#: were measured within 2e-5 of the reference (issue 3's bound is 2 %).
+OBLIQUE_ROBOTICS_RTOL = 1e-4
+
+
+@pytest.mark.parametrize("angle", [30.0, 60.0])
+@pytest.mark.parametrize("dt", [1e-3, 2e-3])
+def test_oblique_msf_tangential_at_robotics_steps(angle, dt):
+    """Issue 12: no oblique pybullet test at 1-2 ms existed; two onset phases."""
+    law, b1, b2 = msf_fixed()
+    ref = simulate_impact(law, b1, b2, SPEED, angle_deg=angle)
+    for k in (0, 3):
+        rec = run_impact(law, b1, b2, SPEED, angle_deg=angle, dt=dt, gap=1e-4 + SPEED * dt * k / 4)
+        for key in ("cor_n", "cor_t", "spin_out"):
+            assert rel(getattr(rec, key), getattr(ref, key)) <= OBLIQUE_ROBOTICS_RTOL, (key, k)
+
+
 def test_dropped_ball_comes_to_rest_without_energy_gain():
     g, dt = 9.81, 2e-3
     law, b1, b2 = msf_fixed()
