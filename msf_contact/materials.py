@@ -244,6 +244,45 @@ _PRESETS: dict[str, Material] = {
 }
 
 
+def _nbr_stewart_anand_2024() -> Material:
+    """Nitrile rubber (NBR), a published five-term Prony series (linear limit).
+
+    Source, exactly what was taken: E. M. Stewart and L. Anand, "A large
+    deformation viscoelasticity theory for elastomeric materials and its
+    numerical implementation in the open-source finite element program
+    FEniCSx", Int. J. Solids Struct. 303 (2024) 113023,
+    doi:10.1016/j.ijsolstr.2024.113023; their NBR parameter set ("from
+    Linder et al. (2011) for NBR": C. Linder, M. Tkachuk, C. Miehe, J. Mech.
+    Phys. Solids 59 (2011) 2134) as printed in the authors' published code,
+    github.com/ericstewart36/finite_viscoelasticity, notebook
+    FV10_NBR_beam_impulse_oscillation.ipynb (commit be678d6): equilibrium
+    shear modulus G_eq = 400 kPa (Arruda-Boyce, locking stretch 10; its
+    small-strain factor 1.006 is dropped), non-equilibrium branches
+    G_i = 535.7, 76.20, 120.5, 21.3, 22.9 kPa with tau_i = 1e-3, 10, 100,
+    1e3, 1e4 s, bulk modulus K = 1000 G_eq, density 1.3e-6 kg/mm^3. The
+    paper's table itself was not reachable; the authors' quasi-static
+    examples (FV08, FV09) use tau_1 = 1 s instead of 1e-3 s, their dynamic
+    ones (FV10, FV11) 1e-3 s, which is taken here. No reference temperature
+    or WLF constants are given (isothermal, room temperature).
+
+    Linear limit: nu = (3K - 2G)/(2(3K + G)) with K/G = 1000, and
+    E = 2 (1 + nu) G for every branch. E_storage, tan_delta: the series at
+    omega = 2 pi 100 Hz, the scale of a 20 mm ball's impact.
+    """
+    nu = (3 * 1000 - 2) / (2 * (3 * 1000 + 1))
+    to_E = 2 * (1 + nu) * 1e3  # kPa of shear -> Pa of Young's modulus
+    curve = PronySeries(E_inf=400.0 * to_E, E_i=tuple(g * to_E for g in (535.7, 76.20, 120.5, 21.3, 22.9)),
+                        tau_i=(1e-3, 10.0, 100.0, 1e3, 1e4))
+    storage, loss = curve.moduli(2 * math.pi * 100.0)
+    return Material("nbr", storage, loss / storage, nu, 1300.0, master_curve=curve,
+                    source="Stewart & Anand 2024, IJSS 303:113023 (NBR set after Linder et al. 2011), "
+                           "via the authors' code FV10_NBR_beam_impulse_oscillation.ipynb; linear limit, "
+                           "E', tan delta at 100 Hz")
+
+
+_PRESETS["nbr"] = _nbr_stewart_anand_2024()
+
+
 def preset(name: str) -> Material:
     """A preset material by name; the error lists the valid names."""
     key = name.strip().lower()

@@ -388,7 +388,8 @@ def viscoelastic_impact(body1, body2, speed: float, *, temperature: float | None
     if temperature is not None:
         if soft.wlf is None:
             raise ValueError(f"material {soft.name!r} has no WLF shift; temperature cannot be applied")
-        rel = rel.shifted(10.0 ** -soft.wlf.log10_aT(temperature))
+        # tau_i(T) = a_T tau_i(T_ref): the convention of Material.at, E(omega, T) = E_ref(omega a_T)
+        rel = rel.shifted(10.0 ** soft.wlf.log10_aT(temperature))
     R = 1.0 / sum(0.0 if math.isinf(b.radius) else 1.0 / b.radius for b in (body1, body2))
     m = reduced_mass(body1.mass, body2.mass)
     s = exact_normal_impact(rel, soft.nu, R, m, speed, method=method, n_samples=max(n_samples, 401))
