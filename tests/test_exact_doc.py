@@ -47,3 +47,17 @@ def test_doc_row_is_recomputed(mc):
         for k, q in enumerate(("cor", "tau")):
             printed = float(cells[6 + k * n + mc.LAWS.index(law)].rstrip("%"))
             assert abs(printed - 100 * mc.rel_err(r, law, q)) <= 0.005 + 1e-6, (law, q)
+
+
+def test_doc_elastomer_row_is_recomputed(mc):
+    """The real elastomer (NBR preset) at 1 m/s: exact COR and tau, and the COR error of MSF and of
+    its offered correction, recomputed against the printed table."""
+    text = DOC.read_text(encoding="utf-8")
+    rel, nu, rho = mc.materials()[mc.ELASTOMER]
+    r = mc.run_case(rel, nu, rho, 1.0, laws=("msf", "msf-hertz/2"))
+    cells = _row(text, mc.ELASTOMER, "1")
+    assert abs(float(cells[4]) - r["exact"]["cor"]) <= 5e-7 + 1e-9
+    assert abs(float(cells[5]) / r["exact"]["tau"] - 1) <= 5e-7
+    for law in ("msf", "msf-hertz/2"):
+        printed = float(cells[6 + mc.LAWS.index(law)].rstrip("%"))
+        assert abs(printed - 100 * mc.rel_err(r, law, "cor")) <= 0.005 + 1e-6, law
