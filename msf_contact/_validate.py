@@ -30,6 +30,10 @@ MEAN_DENSITY_MAX = 1e8
 #: Radius of a finite body [m]: 1e-9 (below, continuum contact mechanics
 #: does not hold) to 1e6 (an impact body, not a planet; R^5 stays ~1e30).
 RADIUS_MIN, RADIUS_MAX = 1e-9, 1e6
+#: Impact speed [m/s]: from 1e-12 (a nanometre in a quarter hour; far below,
+#: v^2 in the Hertz scale (m v^2/K)^(2/5) underflows at ~1e-154 and the
+#: integrator's error scales divide by zero) upward; the top is the sound speed.
+SPEED_MIN = 1e-12
 
 
 #: Small-strain bound of the contact geometry on the approach, x_max/R (R the

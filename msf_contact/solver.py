@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from ._normal import ATOL_SCALED, RTOL, dop853
-from ._validate import (DENSITY_MIN, MEAN_DENSITY_MAX, RADIUS_MAX, RADIUS_MIN, ValidityWarning, check_between,
+from ._validate import (DENSITY_MIN, MEAN_DENSITY_MAX, RADIUS_MAX, RADIUS_MIN, SPEED_MIN, ValidityWarning, check_between,
                         check_choice, check_finite, check_positive, check_range, small_strain_note)
 from .geometry import area
 from .laws import ForceLaw, MSFLaw
@@ -171,6 +171,9 @@ def check_impact_inputs(law: ForceLaw, body1: Body, body2: Body, speed, angle_de
                          "of the softer body (the paper's model needs a subsonic impact, section 1)")
     a = math.radians(angle_deg)
     vn0 = speed * math.sin(a)
+    if vn0 < SPEED_MIN:
+        raise ValueError(f"speed = {speed!r} m/s at angle {angle_deg!r} deg: normal speed {vn0:g} m/s is below "
+                         f"{SPEED_MIN:g} m/s (msf_contact._validate.SPEED_MIN: the impact's scales underflow)")
     with np.errstate(over="ignore", divide="ignore"):  # an infinite scale is refused just below
         xs = float(np.atleast_1d(law.hertz_scale(vn0, reduced_mass(body1.mass, body2.mass)))[0])
     R_min = min(body1.radius, body2.radius)
