@@ -448,29 +448,6 @@ def test_other_geoms_go_through_the_narrow_phase(shape, slots):
     assert len(adapter.pairs) == slots
 
 
-def test_engine_own_contact_must_be_off():
-    xml = """<mujoco><worldbody><geom name="plate" type="plane" size="1 1 .1"/>
-      <body name="b" pos="0 0 .1"><freejoint/><geom name="ball" type="sphere" size="0.02"/></body>
-      </worldbody></mujoco>"""
-    model = mujoco.MjModel.from_xml_string(xml)
-    with pytest.raises(ValueError, match="MuJoCo's own contact is on.*exclude"):
-        MujocoAdapter(model, mujoco.MjData(model), [PairSpec("ball", "plate", law_of("hertz"))])
-
-
-def test_box_edge_is_refused_at_run_time():
-    """A ball falling onto the edge of a box plate: not smooth, ValueError,
-    and the hook is gone afterwards."""
-    b = ball()
-    model, data = scenes.ball_on_plate(b, V, plate="box", dt=1e-4, gap=1e-3)
-    half = scenes.PLATE_HALF_WIDTH_RADII * R
-    data.qpos[0] = half + 0.5 * R  # over the edge, outside the face's rectangle
-    mujoco.mj_forward(model, data)
-    adapter = MujocoAdapter(model, data, [PairSpec("ball", "plate", law_of("hertz"))])
-    with pytest.raises(ValueError, match="edge"):
-        adapter.step(100)
-    assert mujoco.get_mjcb_passive() is None
-
-
 def test_registry():
     assert get_engine("mujoco") is run_impact
     assert get_engine("mujoco-builtin") is run_builtin_impact

@@ -313,19 +313,6 @@ def test_adapter_refuses_unknown_bodies_and_non_smooth_shapes():
         scene.close()
 
 
-def test_box_edge_contact_refused():
-    law, b1, _ = msf_fixed()
-    scene = scenes.ball_on_plate(b1, SPEED, 45.0, dt=1e-4, gap=1e-3, plate="box")
-    c = scene.client
-    # put the ball just beyond the plate's edge, closing on it
-    pb.resetBasePositionAndOrientation(scene.body1[0], [scenes.PLATE_HALF_WIDTH + 0.005, 0, R + 1e-4], [0, 0, 0, 1],
-                                       physicsClientId=c)
-    pb.resetBaseVelocity(scene.body1[0], [-0.5, 0, -0.5], [0, 0, 0], physicsClientId=c)
-    with scene, PybulletAdapter(c, [PairSpec(scene.body1, scene.body2, law)]) as ad:
-        with pytest.raises(ValueError, match="edge"):
-            ad.step(5)
-
-
 def test_box_face_equals_plane():
     law, b1, b2 = msf_fixed()
     ref = simulate_impact(law, b1, b2, SPEED, angle_deg=60.0)

@@ -104,7 +104,7 @@ import numpy as np
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
 from engines._contacts.state import lever_terms_free
 from engines._contacts.islands import TOUCH_TOL, push_reach
-from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box_face, sphere_plane, sphere_sphere
+from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box, sphere_plane, sphere_sphere
 from engines.base import (
     STEPS_PER_CONTACT_MIN,
     ContactForces,
@@ -122,6 +122,11 @@ from engines.mujoco._stepping import StepTracker
 #: required_pairs (in contact, or with a timing correction to remove) are
 #: always listed.
 CANDIDATE_FACTOR = 2.0
+
+#: A sphere whose closest point on a box is an edge or a corner is handed to
+#: MuJoCo's contact once its gap is below this [m] plus the distance it can
+#: close in a step (the contact would begin on the edge).
+EDGE_REACH = 1e-3
 
 _GEOM_NAMES = {
     mujoco.mjtGeom.mjGEOM_PLANE: "plane", mujoco.mjtGeom.mjGEOM_HFIELD: "hfield",
@@ -410,6 +415,7 @@ class MujocoAdapter(EngineAdapter):
         if not pairs:
             raise ValueError("pairs is empty: give at least one PairSpec")
         self._excluded = set(int(s) for s in model.exclude_signature)
+        self._own_on: set[tuple[int, int]] = set()  # geom pairs MuJoCo would collide (no <exclude>)
         #: edge radius [m] per box or cylinder geom name (msf_contact.shapes.DEFAULT_EDGE_RADIUS otherwise)
         self.edge_radii = dict(edge_radii or {})
         self._narrow_pairs: list = []  # per narrow geom pair: (geom1, geom2, shape1, shape2, SlotMatcher)
@@ -473,6 +479,18 @@ class MujocoAdapter(EngineAdapter):
         self.pair_names = [(str(p.body1), str(p.body2)) for p in self.pairs]  # one per contact slot
         self.manager.pair_names = self.pair_names
         self._sensors = self._msf_sensors()
+        # run-time switch per pair (set_mode): 0 MSF, 1 the engine's own contact, 2 both off;
+        # _handoff: a sphere at a box edge or corner handed to MuJoCo's contact while it lasts
+        self._mode = np.zeros(P, np.int8)
+        self._handoff = np.zeros(P, bool)
+        #: sphere-box contacts handed to MuJoCo's own contact at an edge or a corner (count)
+        self.edge_handoffs = 0
+        self.edge_handoffs_of: dict[int, int] = {}  # per pair
+        self._gkeys = [(min(p.geom1, p.geom2), max(p.geom1, p.geom2)) for p in self._pairs]
+        self._excl_saved = np.array(model.exclude_signature, copy=True)
+        self._lifted: set[int] = set()  # body-pair signatures whose <exclude> is lifted for the engine
+        self._filter_map: dict[tuple[int, int], int] = {}  # geom pair -> mjcb_contactfilter's answer
+        self._filtering = False  # the adapter's mjcb_contactfilter is installed
         # contacts sharing a moving body are solved together (engines._islands): a body's key is
         # its tree's root (the links of one chain are one island), -1 for a body welded to the world
         keys = np.array([[-1 if p.fixed1 else int(model.body_rootid[p.body1]),
@@ -510,11 +528,11 @@ class MujocoAdapter(EngineAdapter):
                                  f"needs the curvature at the contact point, which msf_contact.shapes has for "
                                  f"{', '.join(_NARROW)} geoms (make it one of those, or use the built-in contact)")
         why = _mujoco_contact_on(m, g1, g2, self._excluded)
-        if why is not None:
-            raise ValueError(f"pair {i} ({p.body1!r}, {p.body2!r}): MuJoCo's own contact is on ({why}); "
-                             f"add <contact><exclude body1=\"{m.body(int(m.geom_bodyid[g1])).name}\" "
-                             f"body2=\"{m.body(int(m.geom_bodyid[g2])).name or 'world'}\"/> so the force is "
-                             "not counted twice")
+        if why is not None and why.startswith("an explicit"):
+            raise ValueError(f"pair {i} ({p.body1!r}, {p.body2!r}): MuJoCo's own contact is on ({why}), which "
+                             "no run-time switch reaches; remove the <pair> so the force is not counted twice")
+        if why is not None:  # switched off by the adapter's mjcb_contactfilter while installed (set_mode)
+            self._own_on.add((min(g1, g2), max(g1, g2)))
         b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
         fixed1, fixed2 = int(m.body_weldid[b1]) == 0, int(m.body_weldid[b2]) == 0
         if fixed1 and fixed2:
@@ -657,6 +675,107 @@ class MujocoAdapter(EngineAdapter):
             if not fixed2:
                 mujoco.mj_applyFT(model, data, -F, _ZERO3, data.xipos[b2] + r2, b2, data.qfrc_passive)
 
+    # -- the run-time switch per pair -----------------------------------------------
+    def set_mode(self, which, mode: str) -> None:
+        """Switch a pair at run time: ``"msf"`` (this adapter's law, MuJoCo's
+        contact off), ``"engine"`` (MuJoCo's own contact, no MSF force) or
+        ``"off"`` (neither). ``which``: an index into ``adapter.pairs`` or
+        (body1, body2) geom names; every contact slot of that geom pair
+        switches. Nothing in the model is edited for good: the adapter lifts
+        the model's ``<exclude>`` (``exclude_signature``) or answers MuJoCo's
+        ``mjcb_contactfilter`` while installed, and restores both on exit.
+        Contacts in progress under MSF end without a record."""
+        code = {"msf": 0, "engine": 1, "off": 2}.get(mode)
+        if code is None:
+            raise ValueError(f"mode = {mode!r} must be 'msf', 'engine' or 'off'")
+        key = self._key_of(which)
+        slots = np.array([i for i, k in enumerate(self._gkeys) if k == key], dtype=int)
+        leaving = slots[(self._mode[slots] == 0) & (code != 0)]
+        if leaving.size:
+            self.manager.interrupt(leaving, f"switched to {mode!r} by set_mode")
+        self._have_last[slots] = False
+        self._mode[slots] = code
+        if self._installed:
+            self._apply_modes()
+
+    def mode(self, which) -> str:
+        """The pair's mode ("msf", "engine" or "off"; an edge handoff counts as "engine")."""
+        key = self._key_of(which)
+        i = self._gkeys.index(key)
+        return ("msf", "engine", "off")[1 if self._handoff[i] and self._mode[i] == 0 else int(self._mode[i])]
+
+    def _key_of(self, which) -> tuple[int, int]:
+        if isinstance(which, (int, np.integer)) and not isinstance(which, bool):
+            if not 0 <= int(which) < len(self._gkeys):
+                raise ValueError(f"which = {which!r} is outside [0, {len(self._gkeys) - 1}]")
+            return self._gkeys[int(which)]
+        try:
+            a, b = which
+        except (TypeError, ValueError):
+            raise ValueError(f"which = {which!r}: give a pair index or (body1, body2) geom names") from None
+        g1, g2 = self._geom(a, "body1", -1), self._geom(b, "body2", -1)
+        key = (min(g1, g2), max(g1, g2))
+        if key not in self._gkeys:
+            raise ValueError(f"which = {which!r} is not a pair of this adapter")
+        return key
+
+    def _engine_keys(self) -> set:
+        on = (self._mode == 1) | ((self._mode == 0) & self._handoff)
+        return {self._gkeys[i] for i in np.flatnonzero(on)}
+
+    def _apply_modes(self) -> None:
+        """Make MuJoCo's own contact follow the modes (installed only): lift the
+        model's exclusion of a body pair with a geom pair on the engine's contact
+        (an exclude_signature entry takes its sorted neighbour's value, so the
+        array stays sorted), and answer mjcb_contactfilter for the managed geom
+        pairs MuJoCo would otherwise collide or must now collide."""
+        m = self.model
+        sig = m.exclude_signature
+        sig[:] = self._excl_saved
+        self._lifted = set()
+        engine = self._engine_keys()
+        self._filter_map = {}
+        for key in set(self._gkeys):
+            b1, b2 = int(m.geom_bodyid[key[0]]), int(m.geom_bodyid[key[1]])
+            bsig = (min(b1, b2) << 16) + max(b1, b2)
+            if key in engine:
+                for i in np.flatnonzero(self._excl_saved == bsig):
+                    sig[i] = sig[i - 1] if i > 0 else -1
+                    self._lifted.add(bsig)
+                self._filter_map[key] = 0
+            else:
+                self._filter_map[key] = 1
+        need = bool(self._own_on) or bool(self._lifted) or bool(engine)
+        if need and not self._filtering:
+            _install_filter(self)
+        elif not need and self._filtering:
+            _uninstall_filter(self)
+
+    def _engine_contact_changed(self, i: int) -> None:
+        self._apply_modes()
+
+    @property
+    def now(self) -> float:
+        return float(self.data.time)
+
+    def _restore_modes(self) -> None:
+        self.model.exclude_signature[:] = self._excl_saved
+        if self._filtering:
+            _uninstall_filter(self)
+
+    def _contact_filter(self, g1: int, g2: int) -> int:
+        """mjcb_contactfilter for this adapter's model: 1 discards the geom pair."""
+        key = (g1, g2) if g1 < g2 else (g2, g1)
+        ans = self._filter_map.get(key)
+        if ans is not None:
+            return ans
+        m = self.model
+        b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
+        if ((min(b1, b2) << 16) + max(b1, b2)) in self._lifted:
+            return 1  # excluded by the model: only the switched geom pair is let through
+        t1, a1, t2, a2 = m.geom_contype[g1], m.geom_conaffinity[g1], m.geom_contype[g2], m.geom_conaffinity[g2]
+        return 0 if ((t1 & a2) or (t2 & a1)) else 1  # MuJoCo's own bitmask rule
+
     def _msf_sensors(self) -> list[tuple[int, int, int, int]]:
         """The model's user sensors on a managed geom (``<sensor><user objtype="geom"
         objname=GEOM dim="1|3" needstage="pos|vel|acc"/>``): (sensordata address,
@@ -729,12 +848,10 @@ class MujocoAdapter(EngineAdapter):
             return sphere_plane(c1, p.radius1, d.geom_xpos[p.geom2], rot[:, 2])
         # reach for the edge check: the centre's relative speed over one step
         v_c = self._jacobian(p.body1, c1, self._jac) @ d.qvel - self._jacobian(p.body2, c1, self._jac2) @ d.qvel
-        reach = CANDIDATE_FACTOR * float(np.linalg.norm(v_c)) * self.timestep + p.radius1
-        try:
-            return sphere_box_face(c1, p.radius1, d.geom_xpos[p.geom2], rot, m.geom_size[p.geom2, :3], margin=reach)
-        except ValueError as exc:
-            raise ValueError(f"pair {p.index} ({self.pairs[p.index].body1!r}, {self.pairs[p.index].body2!r}): "
-                             f"{exc}") from None
+        reach = CANDIDATE_FACTOR * float(np.linalg.norm(v_c)) * self.timestep + EDGE_REACH
+        det, smooth = sphere_box(c1, p.radius1, d.geom_xpos[p.geom2], rot, m.geom_size[p.geom2, :3])
+        self._edge(p.index, bool(smooth[0]), float(det.x[0]), reach)
+        return det
 
     def _narrow_points(self) -> list:
         """MuJoCo's narrow-phase points of every narrow geom pair at the
@@ -859,7 +976,7 @@ class MujocoAdapter(EngineAdapter):
         # the manager is called every step, also without candidates (it completes records then)
         kin = self._assemble(blocks)
         kin.lever = self._lever(kin)
-        out: ContactForces = self.manager.step(kin)
+        out: ContactForces = self.manager.step(self._mask(kin))
         self._last_kin, self._last_out = kin, out
         Qc = self._couples(out)
         self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
@@ -920,7 +1037,7 @@ class MujocoAdapter(EngineAdapter):
         else:
             kin = self._assemble([b for b in (fast, slow) if b is not None])
         kin.lever = self._lever(kin)
-        out: ContactForces = mgr.step(kin)
+        out: ContactForces = mgr.step(self._mask(kin))
         self._last_kin, self._last_out = kin, out
         Qc = self._couples(out)
         self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
@@ -1216,6 +1333,44 @@ _PREVIOUS: list = []  # the hook that was installed before ours (one entry while
 _PREVIOUS_SENSOR: list = []  # the mjcb_sensor before ours (one entry while an adapter with MSF sensors is installed)
 
 
+_FILTERING: dict[int, MujocoAdapter] = {}  # adapters (by MjData) that answer mjcb_contactfilter
+_PREVIOUS_FILTER: list = []
+
+
+def _dispatch_filter(model, data, g1, g2) -> int:
+    """The mjcb_contactfilter of this process while an adapter needs it
+    (set_mode, a model without <exclude>): the adapter of this MjData answers;
+    other data get the previous Python filter or MuJoCo's bitmask rule."""
+    adapter = _FILTERING.get(id(data))
+    if adapter is not None and adapter.data is data:
+        return adapter._contact_filter(int(g1), int(g2))
+    if _PREVIOUS_FILTER and _PREVIOUS_FILTER[0] is not None:
+        return int(_PREVIOUS_FILTER[0](model, data, g1, g2))
+    t1, a1, t2, a2 = (model.geom_contype[g1], model.geom_conaffinity[g1], model.geom_contype[g2],
+                      model.geom_conaffinity[g2])
+    return 0 if ((t1 & a2) or (t2 & a1)) else 1
+
+
+def _install_filter(adapter) -> None:
+    if not _FILTERING:
+        prev = mujoco.get_mjcb_contactfilter()
+        if isinstance(prev, ctypes._CFuncPtr):
+            raise ValueError("a native (ctypes) mjcb_contactfilter is installed; it cannot be chained from Python")
+        _PREVIOUS_FILTER[:] = [prev]
+        mujoco.set_mjcb_contactfilter(_dispatch_filter)
+    _FILTERING[id(adapter.data)] = adapter
+    adapter._filtering = True
+
+
+def _uninstall_filter(adapter) -> None:
+    _FILTERING.pop(id(adapter.data), None)
+    adapter._filtering = False
+    if not _FILTERING:
+        prev = _PREVIOUS_FILTER[0] if _PREVIOUS_FILTER else None
+        _PREVIOUS_FILTER.clear()
+        mujoco.set_mjcb_contactfilter(prev)
+
+
 def _dispatch_sensor(model, data, stage) -> None:
     """The mjcb_sensor of this process while an adapter with MSF user sensors
     is installed: chain the previous Python hook, then fill the adapter's sensors."""
@@ -1257,15 +1412,18 @@ def installed(adapter: MujocoAdapter):
         mujoco.set_mjcb_passive(_dispatch)
     _REGISTRY[key] = adapter
     adapter._installed = True
-    sensing = bool(adapter._sensors) and not _PREVIOUS_SENSOR
-    if sensing:
-        prev = mujoco.get_mjcb_sensor()
-        _PREVIOUS_SENSOR[:] = [prev]
-        mujoco.set_mjcb_sensor(_dispatch_sensor)
+    sensing = False
     try:
+        adapter._apply_modes()
+        sensing = bool(adapter._sensors) and not _PREVIOUS_SENSOR
+        if sensing:
+            prev = mujoco.get_mjcb_sensor()
+            _PREVIOUS_SENSOR[:] = [prev]
+            mujoco.set_mjcb_sensor(_dispatch_sensor)
         yield adapter
     finally:
         adapter._installed = False
+        adapter._restore_modes()
         _REGISTRY.pop(key, None)
         if sensing:
             prev = _PREVIOUS_SENSOR[0]

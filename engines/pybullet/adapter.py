@@ -93,6 +93,11 @@ from engines.base import STEPS_PER_CONTACT_MIN, ContactKinematics, EngineAdapter
 ADVANCE_ATOL = 1e-12
 ADVANCE_RTOL = 1e-9
 
+#: A sphere whose closest point on a box is an edge or a corner is handed to
+#: pybullet's contact once its gap is below the distance it can close in a
+#: step plus this [m] (the contact would begin on the edge).
+EDGE_REACH = 1e-3
+
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times
 #: the distance the surfaces can close in one step: a safety factor 2 on the
 #: constant-acceleration prediction, since a_ext is an estimate.
@@ -249,6 +254,13 @@ class PybulletAdapter(EngineAdapter):
         #: jumps seen (bodies that moved other than by one adapter step), contacts they interrupted
         self.jumps = 0
         self.interrupted = 0
+        # run-time switch per pair (set_mode): 0 MSF, 1 pybullet's own contact, 2 both off;
+        # _handoff: a sphere at a box edge or corner handed to pybullet's contact while it lasts
+        self._mode = np.zeros(n, np.int8)
+        self._handoff = np.zeros(n, bool)
+        #: sphere-box contacts handed to pybullet's own contact at an edge or a corner (count)
+        self.edge_handoffs = 0
+        self.edge_handoffs_of: dict[int, int] = {}
 
     # -- validation ---------------------------------------------------------
     def _check_body(self, b, label):
@@ -427,6 +439,52 @@ class PybulletAdapter(EngineAdapter):
             for (u1, l1), (u2, l2) in self._bodies:
                 pb.setCollisionFilterPair(u1, u2, l1, l2, enableCollision=1, physicsClientId=self.client)
 
+    def set_mode(self, which, mode: str) -> None:
+        """Switch a pair at run time: ``"msf"`` (this adapter's law, pybullet's
+        contact off for the pair), ``"engine"`` (pybullet's own contact, no
+        MSF force) or ``"off"`` (neither), through
+        ``setCollisionFilterPair``. ``which``: an index into ``adapter.pairs``
+        or the pair's (body1, body2) as given. Contacts in progress under MSF
+        end without a record; ``close()`` enables pybullet's contact for every pair."""
+        code = {"msf": 0, "engine": 1, "off": 2}.get(mode)
+        if code is None:
+            raise ValueError(f"mode = {mode!r} must be 'msf', 'engine' or 'off'")
+        i = self._pair_index(which)
+        if self._mode[i] == 0 and code != 0:
+            self.manager.interrupt([i], f"switched to {mode!r} by set_mode")
+        self._have_last[i] = False
+        self._mode[i] = code
+        self._filter(i)
+
+    def mode(self, which) -> str:
+        """The pair's mode ("msf", "engine" or "off"; an edge handoff counts as "engine")."""
+        i = self._pair_index(which)
+        return ("msf", "engine", "off")[1 if self._handoff[i] and self._mode[i] == 0 else int(self._mode[i])]
+
+    def _pair_index(self, which) -> int:
+        if isinstance(which, (int, np.integer)) and not isinstance(which, bool):
+            if not 0 <= int(which) < len(self._bodies):
+                raise ValueError(f"which = {which!r} is outside [0, {len(self._bodies) - 1}]")
+            return int(which)
+        try:
+            b = (tuple(int(v) for v in which[0]), tuple(int(v) for v in which[1]))
+            return self._bodies.index(b)
+        except (TypeError, ValueError, IndexError):
+            raise ValueError(f"which = {which!r}: give a pair index or the pair's (body1, body2)") from None
+
+    def _filter(self, i: int) -> None:
+        """pybullet's contact for pair i on exactly when its mode (or an edge handoff) says so."""
+        (u1, l1), (u2, l2) = self._bodies[i]
+        on = self._mode[i] == 1 or (self._mode[i] == 0 and self._handoff[i])
+        pb.setCollisionFilterPair(u1, u2, l1, l2, enableCollision=int(on), physicsClientId=self.client)
+
+    def _engine_contact_changed(self, i: int) -> None:
+        self._filter(i)
+
+    @property
+    def now(self) -> float:
+        return self.time
+
     def placed(self, bodies) -> None:
         """Say that ``bodies`` ((body unique id, link index) or body unique ids)
         were placed (``resetBasePositionAndOrientation``, ``resetBaseVelocity``)
@@ -535,7 +593,8 @@ class PybulletAdapter(EngineAdapter):
         elif s2.kind == "plane":
             det = _geometry.sphere_plane(c1, r1, c2, R2 @ s2.size)
         else:
-            det = _geometry.sphere_box_face(c1, r1, c2, R2, s2.size, margin=margin)
+            det, smooth = _geometry.sphere_box(c1, r1, c2, R2, s2.size)
+            self._edge(i, bool(smooth[0]), float(det.x[0]), margin + EDGE_REACH)
         if flip:
             det = det.swapped()
         if s2.kind == "sphere":
@@ -692,7 +751,7 @@ class PybulletAdapter(EngineAdapter):
         kin.pair = np.asarray(kin.pair, int)
         kin.lever = self._lever(bodies, kin)
         self._cur_bodies = bodies
-        out = self.manager.step(kin)
+        out = self.manager.step(self._mask(kin))
         self._last_kin, self._last_out = kin, out
         self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
         pair = np.asarray(out.pair, int)
