@@ -21,6 +21,7 @@ heavy packages import them inside their handler, so ``--help`` stays fast.
 from __future__ import annotations
 
 import argparse
+import os
 import re
 import sys
 import warnings
@@ -247,9 +248,11 @@ def main(argv: list[str] | None = None) -> int:
         except RuntimeError as exc:  # a run that failed (no convergence, a contact that never ended)
             print(f"{PROG}: error: {_one_line(exc)}", file=sys.stderr)
             raise SystemExit(EXIT_FAILURE) from None
-        except (ArithmeticError, MemoryError, OSError) as exc:  # no traceback reaches a user
+        except Exception as exc:  # no traceback reaches a user (MSF_CONTACT_TRACEBACK=1 shows it)
+            if os.environ.get("MSF_CONTACT_TRACEBACK"):
+                raise
             print(f"{PROG}: error: {type(exc).__name__}: {_one_line(exc)} (a run failure; please report it with "
-                  "the command line)", file=sys.stderr)
+                  "the command line; MSF_CONTACT_TRACEBACK=1 shows where)", file=sys.stderr)
             raise SystemExit(EXIT_FAILURE) from None
 
 

@@ -236,3 +236,19 @@ def test_every_scenario_key_validated(key, value):
         return
     assert time.perf_counter() - t0 < INPUT_SECONDS
     assert len(cells) >= 1
+
+
+def test_an_unexpected_exception_is_one_line_and_exit_1(capsys, monkeypatch):
+    """A bug in a command (here a KeyError) ends in one line and exit code 1,
+    not a traceback; MSF_CONTACT_TRACEBACK=1 re-raises it."""
+    def broken(args):
+        raise KeyError("x")
+
+    from dataclasses import replace
+
+    monkeypatch.setitem(cli.COMMANDS, "impact", replace(cli.COMMANDS["impact"], run=broken))
+    code, out, errors, _ = call(capsys, "impact")
+    assert code == 1 and len(errors) == 1 and errors[0].startswith("msf-contact: error: KeyError")
+    monkeypatch.setenv("MSF_CONTACT_TRACEBACK", "1")
+    with pytest.raises(KeyError):
+        cli.main(["impact"])
