@@ -75,10 +75,18 @@ Islands. With the adapter's coupling blocks (:meth:`ContactManager.set_coupling`
 contacts that share a moving body within a step are integrated together
 (:mod:`.islands`); a contact alone takes the path described here.
 
-Known limits. W is frozen over a step at the step-start geometry: the
-lever arm of a sub-cycled impact is R, not the mid-overlap R - x/2 the
-reference solver uses (an O(x_max/R) difference in spin and cor_t, 0.3-1 %
-for a PTFE ball at 1 m/s). One contact per pair (smooth convex shapes).
+Moving contact point. When the adapter gives ``ContactKinematics.lever``
+(free bodies in both adapters) the contact point moves with the overlap
+inside the step: W(d), the contact-point velocity's kinematic change and
+the couple of the moved point on both bodies (:data:`.state.LEVER_DOC`), so
+the lever arm is the reference solver's R - x/2 also for a contact that
+lies wholly inside one step (0.25 mm glass beads 40-60 % deep: cor_t,
+spin_out, W_diss_t within 0.02 % of the reference, docs/engines.md).
+Known limits: without ``lever`` (links of articulated bodies, islands) W is
+frozen at the step-start geometry (lever arm R, an O(x_max/R) difference in
+spin and cor_t); the normal's turn within a step (sphere on sphere) and the
+settled path keep the step-start point. One contact per pair (smooth convex
+shapes).
 
 Where the code is. Two implementations of this one algorithm:
 

@@ -76,8 +76,10 @@ class CompiledPath:
         ended_by = np.zeros(k, np.int8)
         ints = np.zeros(4, np.int64)
         fl, oc = self._fl, self._oc
-        if L is None:
-            L = np.zeros((k, K.NL))  # no moving contact point (state.LEVER_DOC)
+        if L is None:  # no moving contact point (state.LEVER_DOC): a zero buffer the kernel only reads
+            if self._L0.shape[0] < k:
+                self._L0 = np.zeros((k, K.NL))
+            L = self._L0[:k]
         K.prelude(_KCST, p, x_eng, n, v, vc, W, Wc, a, paper, L, t0, dt, self.settle_rate, self.settled_path, kg, codes,
                   LC, oc, self.active, self.x, self.s, self.tau_est, self.dv_corr, self.dvc_corr, self.W_el,
                   self.W_visc, self.Q_t, self.W_t, y, T, t_loc, in_c, settled, status, self.turned, fl, ints,

@@ -160,6 +160,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self.dvc_corr = z3.copy()  #: W_com J [m/s] (P, 3)
         #: angular impulse n x PD / 2 of the moving contact point in the last step, on both bodies [N m s] (P, 3)
         self.couple = z3.copy()
+        self._L0 = np.zeros((P, K.NL))  #: the compiled path's rows without a moving contact point (all zero)
         #: max(x, 0) of the engine geometry where the timing correction J was applied [m] (P,)
         self.x_J = z.copy()
         self.body_in: list[dict | None] = [None] * P
