@@ -1,5 +1,8 @@
 """Contact force laws behind one interface, vectorised over n contacts.
 
+(Over 600 lines because the five laws and their registry are read side by
+side: each law is a short class under the one contract below.)
+
 The contract (:class:`ForceLaw`), what an implementer must do:
 
 1. Take the pair (:class:`~msf_contact.materials.ContactPair`), the surface

@@ -1,5 +1,10 @@
 """Reference impact solver: an isolated collision integrated to tight tolerance.
 
+(Over 600 lines because it is one algorithm that a reader checks as a whole:
+the equations of motion, the stick-slip segments, the event location and the
+record share the state layout; the isolated normal integration is in
+``_normal.py``.)
+
 Planar model (the plane of incidence holds the normal n, from body 2 toward
 body 1, and the tangent t along the incident tangential velocity; spins are
 about n x t). Body 2 is a half-space (infinite mass and radius, fixed) or a

@@ -1,5 +1,8 @@
 """Validation of the numerical laws and measurement of the paper's closed forms.
 
+(Over 600 lines because it is a flat list of independent checks, one short
+function each, that docs/validation.md and the tests import by name.)
+
 Each function runs the reference solver (``simulate_impact`` or
 ``ForceLaw.solve_normal``) on a small case and returns :class:`Row` s that
 compare a numerical value with a reference computed here from an
