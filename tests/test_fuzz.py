@@ -74,7 +74,7 @@ def assert_answered(code, out, errors, seconds, argv):
         assert "Traceback" not in errors[0] and "usage:" not in errors[0]
 
 
-FUZZ = settings(max_examples=30, deadline=None, derandomize=True, database=None,
+FUZZ = settings(max_examples=20, deadline=None, derandomize=True, database=None,
                 suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 #: identify solves up to ~20 impacts per accepted input (~0.5 s): fewer examples.
 FUZZ_SLOW = settings(FUZZ, max_examples=8)
