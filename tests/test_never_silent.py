@@ -1,9 +1,12 @@
 """Never silent (issue 10, item 4): leaving the model's validity is said in
 the record, whichever solver produced it."""
 
+import warnings
+
+import numpy as np
 import pytest
 
-from msf_contact import Body, ContactPair, Curvature, make_law, preset, simulate_impact
+from msf_contact import Body, ContactPair, Curvature, ValidityWarning, make_law, preset, simulate_impact
 from msf_contact._validate import SMALL_STRAIN_X_OVER_R
 
 GLASS, PU = preset("glass"), preset("polyurethane")
@@ -64,3 +67,47 @@ def test_mujoco_bead_runs_without_autoreset():
     # 0.41 R deep: the engine's record says so too (it was empty at 0.74 R)
     assert rec.x_max / R_BEAD > SMALL_STRAIN_X_OVER_R
     assert any("small-strain" in s for s in rec.outside_validity), rec.outside_validity
+
+
+def test_energy_gain_is_flagged_and_warned():
+    """A steel ball hits a steel plate at 1 m/s and, from maximum compression
+    on, an outside acceleration of 2,000 m/s^2 pushes it away (what a stiff
+    neighbour's push delivered a step late looks like to the contact): it
+    leaves faster than it came (a constant push over the whole contact would
+    do no net work). The record says so in outside_validity and a
+    ValidityWarning names the pair, dt and what to change."""
+    from engines.base import PairSpec
+    from test_engine_core import FakeEngine
+
+    steel = preset("steel")
+    R = 0.01
+    law = make_law("msf", ContactPair(steel, steel), Curvature.sphere_on_plane(R))
+    b = Body.sphere(steel, R)
+    eng = FakeEngine([PairSpec("ball", "plate", law)], [(0, -1)], [R], [b.mass], [[0, 0, R + 1e-6]],
+                     [[0, 0, -1.0]], [[0, 0, 0]], 1e-5)
+    with pytest.warns(ValidityWarning, match=r"energy gained in a contact: pair 0 \(ball, plate\), dt = 1e-05 s.*set_coupling"):
+        for _ in range(30):
+            restitution = eng.mgr.active[0] and eng.mgr.xdot[0] < 0
+            eng.g = np.array([0.0, 0.0, 2000.0 if restitution else 0.0])
+            eng.step()
+    (rec,) = eng.mgr.pop_records()
+    assert rec.cor_n > 1.0
+    assert any("energy gained" in s for s in rec.outside_validity)
+
+
+def test_no_energy_flag_for_an_ordinary_impact():
+    from engines.base import PairSpec
+    from test_engine_core import FakeEngine
+
+    steel = preset("steel")
+    R = 0.01
+    law = make_law("msf", ContactPair(steel, steel), Curvature.sphere_on_plane(R))
+    b = Body.sphere(steel, R)
+    eng = FakeEngine([PairSpec("ball", "plate", law)], [(0, -1)], [R], [b.mass], [[0, 0, R + 1e-6]],
+                     [[0.5, 0, -1.0]], [[0, 0, 0]], 1e-5)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", ValidityWarning)
+        for _ in range(30):
+            eng.step()
+    (rec,) = eng.mgr.pop_records()
+    assert not any("energy gained" in s for s in rec.outside_validity)

@@ -154,6 +154,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         #: solved in an island of several contacts in the last step (P,): the adapters keep such a
         #: pair's force out of the held forces of a_ext (the island couples it explicitly)
         self.in_island = np.zeros(P, bool)
+        self._island_contact = np.zeros(P, bool)  # the pair's current contact was in an island at some step
         self._held_force = np.zeros((P, 3))  #: the step-averaged forces held into the next step [N] (P, 3)
         self.J = z3.copy()  #: timing-correction impulse applied in the last step, removed in the next [N s] (P, 3)
         self.dv_corr = z3.copy()  #: W J: the engine's contact-point velocity offset it causes [m/s] (P, 3)
@@ -430,6 +431,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
                 np.add.at(a_r, cp, -np.einsum("bij,bj->bi", Wpq, Fh))
             info["island_rows"] += int(r.size)
             self.in_island[pp] = True
+            self._island_contact[pp] = True  # contacts that begin in it: Records._begin
             P = step_island(self, pp, x[r], n[r], v[r], vc[r], W[r], Wc[r], a_r, t0, info, cp, cq, Wpq, Wcpq,
                             self._rest_rows[r])
             force[r] = P / self.dt

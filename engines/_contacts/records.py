@@ -8,18 +8,19 @@ completion once the engine has applied the contact's last impulse
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
 from msf_contact import closed_forms as cf
-from msf_contact._validate import small_strain_note
+from msf_contact._validate import ValidityWarning, small_strain_note
 from msf_contact.geometry import area
 from msf_contact.record import ImpactRecord
 
 from .. import _kernel as K
 from .state import (
-    _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, PENDING_MAX_STEPS, SUBSTEPS_PER_CONTACT, SUBSTEPS_PER_TANGENTIAL, _dot,
-    _duration_estimate, _pc, _plain, _Rows, onset_speed_floor,
+    ENERGY_GAIN_RTOL, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, PENDING_MAX_STEPS, SUBSTEPS_PER_CONTACT,
+    SUBSTEPS_PER_TANGENTIAL, _dot, _duration_estimate, _pc, _plain, _Rows, onset_speed_floor,
 )
 
 
@@ -43,6 +44,7 @@ class Records:
     def _begin(self, g, law, p, new, y, batch, t_abs):
         """Onset of the contacts at rows new: law.onset for all of them at once."""
         pp = p[new]
+        self._island_contact[pp] = self.in_island[pp]
         n = batch.n[new]
         W = batch.W[new]
         nWn = np.einsum("ki,kij,kj->k", n, W, n)
@@ -138,6 +140,10 @@ class Records:
         strain = small_strain_note(x_m, law.geom.R)
         if strain:
             outside.append(strain)
+        gain = self._energy_gain(p, vin, v_out, lu, yl[_WT])
+        if gain:
+            outside.append(gain)
+            warnings.warn(gain, ValidityWarning, stacklevel=2)
         kl = self._kernel_law[g]
         if kl is not None:
             Pc, Pc_F = K.peak_pressures(kl[0], kl[1], self._oc, p, x_m, float(self.x_at_F[p]), float(self.F_max[p]),
@@ -198,6 +204,27 @@ class Records:
             self._publish(p, rec)
         else:  # completed once the engine has applied the contact's last impulse (see pending_count)
             self._pending.append([p, rec, axis if lt > 0 else None, 0])
+
+    def _energy_gain(self, p, vin, v_out, lu, W_t) -> str | None:
+        """The reason a finished contact of pair p ended with more kinetic
+        energy than it began with, beyond ENERGY_GAIN_RTOL, or None: normal
+        (v_out > v_in) or tangential (negative W_diss_t). Checked for a
+        contact alone (in an island, energy passes between the contacts) that
+        began at a closing speed of its own (not the onset floor)."""
+        if self._island_contact[p] or not (self.v_n_in[p] > 0 and self.v_n_in[p] >= self.v_n_used[p]):
+            return None
+        m = float(self.m_eff[p])
+        E_in = 0.5 * m * (vin * vin + lu * lu)
+        dE_n = 0.5 * m * (v_out * v_out - vin * vin)
+        if dE_n <= ENERGY_GAIN_RTOL * E_in and -W_t <= ENERGY_GAIN_RTOL * E_in:
+            return None
+        names = self.pair_names[p]
+        what = (f"normal COR {v_out / vin:.6g} > 1" if dE_n > ENERGY_GAIN_RTOL * E_in
+                else f"tangential energy grew by {-W_t:.3g} J")
+        return (f"energy gained in a contact: pair {p} ({names[0]}, {names[1]}), dt = {self.dt:g} s: "
+                f"{what} (more than {ENERGY_GAIN_RTOL:g} of its {E_in:.3g} J): work from outside the contact "
+                "(a_ext), e.g. another stiff contact on the same body acting a step late; give the adapter's "
+                "coupling blocks (ContactManager.set_coupling) or take a smaller dt")
 
     def interrupt(self, pairs, why: str) -> int:
         """The engine's state jumped for the bodies of ``pairs`` (pair
