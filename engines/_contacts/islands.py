@@ -47,7 +47,8 @@ import numpy as np
 
 from .reference import _Batch, _find_root
 from .state import (
-    _P, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, MAX_SEGMENTS, NY, _dot, _Rows, _tangent_basis,
+    _P, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, MAX_SEGMENTS, NY, SUBSTEPS_PER_CONTACT, _dot, _Rows,
+    _tangent_basis,
 )
 
 
@@ -267,7 +268,7 @@ def step_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq, 
             isl.refresh_onset()
             info["onsets"] += int(new.size)
             continue
-        h_isl = float(np.min(mgr.h[p[in_c]]))
+        h_isl = min(float(np.min(mgr.h[p[in_c]])), _stiff_step(isl, y, in_c))
         nsub = max(1, int(math.ceil(rem / h_isl - 1e-9)))
         h = rem / nsub
         stopped = False
@@ -366,6 +367,29 @@ def step_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq, 
     mgr.dv_corr[p] = dv
     mgr.dvc_corr[p] = dvc
     return impulse
+
+
+def _stiff_step(isl, y, in_c) -> float:
+    """Internal step [s] from the island's contacts as they are now: pi
+    sqrt(m/k) / SUBSTEPS_PER_CONTACT with k = 1.5 F_el(x)/x (the local Hertz
+    stiffness) and m = 1/(n W n). A contact that began slowly (a resting one,
+    its onset duration from the floor speed) can be pressed hard by its
+    island's impacts; its own h from onset would then be far too long."""
+    h = math.inf
+    for _g, law, idx, b in isl.groups:
+        on = in_c[idx] & (y[idx, _X] > 0)
+        if not np.any(on) or not b.onset:
+            continue
+        j = idx[on]
+        x = y[j, _X]
+        o = {key: val[on] for key, val in b.onset.items()}
+        F = law.contact_normal_force(x, np.zeros(x.size), o)
+        k = 1.5 * np.maximum(F, 0.0) / x
+        nWn = np.einsum("ki,kij,kj->k", isl.n[j], isl.W[j], isl.n[j])
+        with np.errstate(divide="ignore"):
+            tau = np.where(k > 0, math.pi / np.sqrt(k * nWn), np.inf)
+        h = min(h, float(np.min(tau)) / SUBSTEPS_PER_CONTACT)
+    return h
 
 
 def _begin_rows(mgr, p, new, y, rows, t_abs):
