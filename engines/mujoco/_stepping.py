@@ -121,16 +121,13 @@ class StepTracker:
         """'' if (qpos, qvel) is the integrator's step from the start state,
         else what differs (and the trees that differ in ``jumped``)."""
         m = self.model
-        v0 = self.v[0]
         if rk4:
-            # qpos advanced with the weighted stage velocities; qvel with the weighted stage
-            # accelerations, a_i from the stage velocities v_{i+1} = v_0 + C_i h a_i and a_4 =
-            # the last stage's qacc (still in data: this hook runs before mj_fwdAcceleration)
+            # qpos advanced with the weighted stage velocities (the new qvel also needs the last
+            # stage's acceleration, which MuJoCo does not keep: data.qacc differs from it with
+            # actuators, so a qvel written between RK4 steps alone is not detected)
             vbar = sum(b * self.v[i] for i, b in enumerate(RK4_B))
-            a = [(self.v[i + 1] - v0) / (RK4_C[i] * h) for i in range(3)] + [d.qacc]
-            v_new = v0 + h * sum(b * a[i] for i, b in enumerate(RK4_B))
         else:
-            vbar = v_new = d.qvel  # semi-implicit: qpos advanced with the new velocity
+            vbar = d.qvel  # semi-implicit: qpos advanced with the new velocity
         # the step's qpos from the start state, by MuJoCo's own mj_integratePos (a rotation of
         # more than pi per step, e.g. a spinning bead, is not recovered by differentiating)
         self._q[:] = self.q0
@@ -139,8 +136,6 @@ class StepTracker:
         tol_q = JUMP_VTOL * h * (1.0 + vmax) + 1e-13 * (1.0 + np.abs(self.q0))
         bad_q = np.abs(self._q - d.qpos) > tol_q
         trees = set(self._qtree[bad_q].tolist())
-        if rk4:
-            trees |= set(m.dof_treeid[np.abs(d.qvel - v_new) > JUMP_VTOL * (1.0 + np.abs(d.qvel))].tolist())
         if trees:
             self.jumped = np.array(sorted(trees))
             return (f"qpos/qvel of {len(trees)} kinematic tree(s) are not the step's image of the last state "
