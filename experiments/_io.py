@@ -52,6 +52,14 @@ def figure_links(figs: list[str]) -> str:
 #: (points exactly on a limit, and rounding of the limits).
 FIGURE_SLACK = 1e-6
 
+#: Smallest fraction of an axis span (of its decades on a log axis) that the
+#: data's extent must cover (issue 12: jet_angle.png spanned 0-90 deg for data
+#: at 27-62, 0.39 of the span; jet_pc_hist.png 0.1-1000 MPa for data at
+#: 6-13 MPa, 0.08 of the decades). 0.3 leaves room for margins, legends kept
+#: outside, and a marked reference value (a coating strength) beside the data,
+#: while refusing an axis set from a fixed range rather than from the data.
+DATA_SPAN_MIN = 0.3
+
 
 def _artist_points(ax):
     """(n, 2) data coordinates of what ax draws in data coordinates: line
@@ -85,10 +93,66 @@ def _artist_points(ax):
     return np.concatenate(pts) if pts else np.empty((0, 2))
 
 
+def _reference_values(ax):
+    """(x values, y values) [data units] of the reference lines an axes marks
+    with axvline / axhline: a Line2D drawn in the x- (or y-) axis blended
+    transform, whose data-coordinate x (y) is constant. They are not data
+    (:func:`_artist_points` skips them) but a marked value (a strength, a
+    limit) is a reason for the axis to reach it."""
+    import numpy as np
+
+    xs, ys = [], []
+    for line in ax.get_lines():
+        if not line.get_visible():
+            continue
+        tr = line.get_transform()
+        if tr == ax.get_xaxis_transform():
+            xs += list(np.asarray(line.get_xdata(), dtype=float).ravel())
+        elif tr == ax.get_yaxis_transform():
+            ys += list(np.asarray(line.get_ydata(), dtype=float).ravel())
+    return np.asarray(xs, dtype=float), np.asarray(ys, dtype=float)
+
+
+def _area_points(ax):
+    """(n, 2) data-coordinate vertices of filled areas an axes draws in data
+    coordinates (fill_between bands, PolyCollections): data for the span of
+    an axis, though not points a legend must leave uncovered."""
+    import numpy as np
+    from matplotlib.collections import LineCollection, PolyCollection
+
+    pts = [np.asarray(p.vertices, dtype=float).reshape(-1, 2)
+           for col in ax.collections
+           if isinstance(col, PolyCollection) and not isinstance(col, LineCollection) and col.get_visible()
+           and col.get_transform().contains_branch(ax.transData) for p in col.get_paths()]
+    pts = [p for p in pts if p.size]
+    return np.concatenate(pts) if pts else np.empty((0, 2))
+
+
+def _span_fraction(v, lo: float, hi: float, log: bool) -> float:
+    """Fraction of the axis span [lo, hi] covered by the extent of values v:
+    of the span on a linear axis, of the decades on a log axis (positive
+    values only). 1.0 (nothing to judge) when v is empty or one value."""
+    import numpy as np
+
+    if log:
+        v = v[v > 0]
+        if v.size < 2 or lo <= 0:
+            return 1.0
+        ext, span = np.log10(v.max() / v.min()), np.log10(hi / lo)
+    else:
+        ext, span = v.max() - v.min() if v.size else 0.0, hi - lo
+    if ext <= 0 or span <= 0:
+        return 1.0
+    return float(ext / span)
+
+
 def check_figure(fig, name: str) -> None:
-    """Refuse a report figure that hides data: every point an axes draws
-    lies inside its limits, and no legend inside an axes covers a point
-    (issue 12). Raises ValueError naming the figure, the axes and the point."""
+    """Refuse a report figure that hides data or whose axes are not set by
+    the data (issue 12): every point an axes draws lies inside its limits; on
+    each axis the extent of what is drawn (data and filled bands, plus values
+    marked with axvline / axhline) covers at least :data:`DATA_SPAN_MIN` of the axis span
+    (of its decades on a log axis); no legend inside an axes covers a point.
+    Raises ValueError naming the figure, the axes and the offending value."""
     import numpy as np
 
     fig.canvas.draw()
@@ -98,6 +162,9 @@ def check_figure(fig, name: str) -> None:
         if not len(pts):
             continue
         label = f"figure {name}, axes {i} ({ax.get_title() or ax.get_ylabel()!r})"
+        refs = _reference_values(ax)
+        area = _area_points(ax)
+        area = area[np.all(np.isfinite(area), axis=1)]
         for k, (lim, scale) in enumerate(((ax.get_xlim(), ax.get_xscale()), (ax.get_ylim(), ax.get_yscale()))):
             lo, hi = sorted(lim)
             v = pts[:, k]
@@ -108,6 +175,13 @@ def check_figure(fig, name: str) -> None:
                 bad = v[(v < lo - slack) | (v > hi + slack)]
             if bad.size:
                 raise ValueError(f"{label}: data at {'xy'[k]} = {bad[0]:.6g} outside the axis [{lo:.6g}, {hi:.6g}]")
+            drawn = np.concatenate([v, area[:, k], refs[k][np.isfinite(refs[k])]])
+            frac = _span_fraction(drawn, lo, hi, scale == "log")
+            if frac < DATA_SPAN_MIN:
+                raise ValueError(
+                    f"{label}: the data span {'xy'[k]} = [{drawn.min():.6g}, {drawn.max():.6g}], "
+                    f"{frac:.0%} of the {'decades of the ' if scale == 'log' else ''}axis [{lo:.6g}, {hi:.6g}] "
+                    f"(at least {DATA_SPAN_MIN:.0%}); set the limits from the data")
         legend = ax.get_legend()
         if legend is not None and legend.get_visible():
             box = legend.get_window_extent()

@@ -232,3 +232,44 @@ def test_figure_check_refuses_hidden_data_and_covering_legends(tmp_path):
     ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
     save_figure_atomic(fig, tmp_path / "g.png")
     plt.close(fig)
+
+
+def test_figure_check_refuses_axes_not_set_by_the_data():
+    """Issue 12: axis ranges come from the data. jet_angle.png spanned
+    0-90 deg for data at 27-62 deg (35/90 = 0.39 of the span, but here with
+    the y axis also loose) and jet_pc_hist.png 0.1-1000 MPa for data at
+    6-13 MPa (0.34 of 4 decades = 0.08): both refused; tight axes pass."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from experiments._io import DATA_SPAN_MIN, check_figure
+
+    fig, ax = plt.subplots()
+    ax.plot([27.0, 62.0], [0.5, 0.6], "o-")
+    ax.set_xlim(0.0, 90.0)
+    ax.set_ylim(0.0, 1.0)  # 0.1 of the span in y
+    with pytest.raises(ValueError, match=r"figure a.png, axes 0.*data span y = \[0.5, 0.6\].*of the axis \[0, 1\]"):
+        check_figure(fig, "a.png")
+    ax.set_ylim(0.45, 0.65)
+    ax.set_xlim(0.0, 200.0)  # 35/200 = 0.175 of the x span
+    with pytest.raises(ValueError, match=r"data span x = \[27, 62\]"):
+        check_figure(fig, "a.png")
+    ax.set_xlim(22.0, 67.0)
+    check_figure(fig, "a.png")  # tight: accepted
+    plt.close(fig)
+
+    fig, ax = plt.subplots()
+    ax.stairs([0, 3, 5, 2, 0], [4.0, 6.0, 8.0, 10.0, 13.0, 20.0])
+    ax.set_xscale("log")
+    ax.set_xlim(0.1, 1000.0)
+    assert np.log10(13 / 6) / 4 < DATA_SPAN_MIN
+    with pytest.raises(ValueError, match=r"data span x = \[6, 13\].*decades of the axis \[0.1, 1000\]"):
+        check_figure(fig, "h.png")
+    ax.set_xlim(5.0, 16.0)
+    check_figure(fig, "h.png")  # tight: accepted
+    ax.axvline(40.0, color="k", ls="--")  # a marked coating strength beside the data justifies the reach
+    ax.set_xlim(5.0, 50.0)
+    check_figure(fig, "h.png")
+    plt.close(fig)
