@@ -264,12 +264,15 @@ class Plate:
 class Bins:
     """Fixed-size aggregate grids: angle bins over (0, 90] deg; the energy map
     over the plate's ``size`` in map_bins (nx, ny) cells; Pc_max bins
-    log-spaced over pc_range [Pa]."""
+    log-spaced over pc_range [Pa]: 200 over 4 decades is 50 a decade, so a
+    narrow spread of Pc_max fills a readable histogram (``make demo``'s jet,
+    Pc_max 6.5-10.8 MPa over 804 impacts: 12 bins filled, 3 at 10 a decade;
+    issue 12)."""
 
     angle_bins: int = 18
     map_bins: tuple[int, int] = (40, 40)
     pc_range: tuple[float, float] = (1e5, 1e9)
-    pc_bins: int = 40
+    pc_bins: int = 200
 
     def __post_init__(self):
         if int(self.angle_bins) != self.angle_bins or not 1 <= self.angle_bins <= 900:
