@@ -103,6 +103,17 @@ EDGE_REACH = 1e-3
 #: constant-acceleration prediction, since a_ext is an estimate.
 CANDIDATE_FACTOR = 2.0
 
+#: A link held by a user constraint (``createConstraint``) is solved rigidly by
+#: pybullet at the step, while the MSF sub-cycle sees only the link's inertia:
+#: the contact impulse of a step reaches the constraint one step late. The
+#: first-bounce COR of a rubber ball (R = 20 mm, 2 m/s) on a constraint-held
+#: paddle (tests/test_held_link.py), against dt = 0.2 ms: -1.8 % at 0.5 ms
+#: (4.8 steps per contact), -7.3 % at 1 ms (2.4 steps), -5.3 % at 2 ms (1.2
+#: steps). The result holds (2 %) from 4.8 steps per contact and fails at 2.4:
+#: below this many steps per contact a held pair's records are flagged and
+#: warned about, dt_max = tau / HELD_MIN_STEPS (docs/engines.md).
+HELD_MIN_STEPS = 4.0
+
 _SHAPE_NAMES = {pb.GEOM_SPHERE: "sphere", pb.GEOM_BOX: "box", pb.GEOM_CAPSULE: "capsule",
                 pb.GEOM_CYLINDER: "cylinder", pb.GEOM_PLANE: "plane", pb.GEOM_MESH: "mesh"}
 _SUPPORTED = ("sphere", "plane", "box")
@@ -261,6 +272,7 @@ class PybulletAdapter(EngineAdapter):
         #: sphere-box contacts handed to pybullet's own contact at an edge or a corner (count)
         self.edge_handoffs = 0
         self.edge_handoffs_of: dict[int, int] = {}
+        self._held_warned: set[int] = set()  # held pairs warned about a too coarse step (_flag_held)
 
     # -- validation ---------------------------------------------------------
     def _check_body(self, b, label):
@@ -403,6 +415,51 @@ class PybulletAdapter(EngineAdapter):
         else:
             size = np.asarray(dims, dtype=float) / np.linalg.norm(dims)
         return _Shape(kind, size, np.asarray(lpos, dtype=float), _mat(lorn))
+
+    # -- held links (issue 11, item 6) ---------------------------------------
+    def held_pairs(self) -> set[int]:
+        """Indices of the pairs one of whose bodies is held by a pybullet user
+        constraint (``createConstraint``, read through ``getConstraintInfo``:
+        a constraint on any link of the body's multibody holds the link)."""
+        c = self.client
+        uids = set()
+        for k in range(pb.getNumConstraints(physicsClientId=c)):
+            info = pb.getConstraintInfo(pb.getConstraintUniqueId(k, physicsClientId=c), physicsClientId=c)
+            uids.update(u for u in (info[0], info[2]) if u >= 0)
+        return {i for i, (b1, b2) in enumerate(self._bodies) if b1[0] in uids or b2[0] in uids}
+
+    def _flag_held(self, records: list) -> list:
+        """Flag (``outside_validity``) the records of constraint-held pairs
+        resolved with fewer than HELD_MIN_STEPS steps per contact, and warn
+        once per pair (RuntimeWarning: pair, dt, dt_max and what to change)."""
+        if not records or not pb.isConnected(self.client):
+            return records
+        held = self.held_pairs()
+        for r in records:
+            i = r.inputs.get("pair")
+            if i not in held or not r.tau < HELD_MIN_STEPS * self._dt:
+                continue
+            dt_max = r.tau / HELD_MIN_STEPS
+            note = (f"held link: pair {i} {self.pair_names[i]} is held by a pybullet constraint and its contact "
+                    f"(tau = {r.tau:.3g} s) spans {r.tau / self._dt:.2g} < {HELD_MIN_STEPS:g} steps of dt = "
+                    f"{self._dt:g} s: the COR is outside 2 % (measured -7 % at 2.4 steps); "
+                    f"use dt <= dt_max = {dt_max:.3g} s (setTimeStep)")
+            if note not in r.outside_validity:
+                r.outside_validity.append(note)
+            if i not in self._held_warned:
+                self._held_warned.add(i)
+                warnings.warn(note, RuntimeWarning, stacklevel=3)
+        return records
+
+    @property
+    def records(self) -> list:
+        """Finished impacts (msf_contact.ImpactRecord), oldest first; a
+        constraint-held pair's records flagged when the step is too coarse."""
+        return self._flag_held(self.manager.records)
+
+    def pop_records(self) -> list:
+        """Finished impacts since the last call, and forget them; flagged as :attr:`records`."""
+        return self._flag_held(self.manager.pop_records())
 
     # -- contract -------------------------------------------------------------
     @property
