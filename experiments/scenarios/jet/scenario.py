@@ -68,7 +68,7 @@ SCHEMA = {
         "angle_bins": Field("int", default=18, lo=1, hi=900),
         "map_bins": Field("list[int]", default=[40, 40], lo=1, hi=2000),
         "pc_range": Field("list[float]", default=[1e5, 1e9], lo=0.0, lo_open=True, help="[Pa]"),
-        "pc_bins": Field("int", default=40, lo=1, hi=1000),
+        "pc_bins": Field("int", default=200, lo=1, hi=1000),
     },
 }
 
