@@ -23,9 +23,6 @@ from experiments import cli
 from experiments.runner import get_scenario
 
 ROOT = Path(__file__).resolve().parent.parent
-#: Wall time one refused or cheap input may take [s] (the bound is checked
-#: before any work; generous for a loaded 2-core CI machine).
-INPUT_SECONDS = 20.0
 
 #: Numbers a user or a script can type; hypothesis adds its own floats.
 EXTREMES = ["nan", "-nan", "inf", "-inf", "1e300", "-1e300", "1e-300", "-1e-300", "0", "-0", "1e-12", "1e9",
@@ -59,7 +56,6 @@ def call(capsys, *argv):
 
 def assert_answered(code, out, errors, seconds, argv):
     """Runs to finite output (exit 0) or is refused in one line (exit 2 input, 1 run failure)."""
-    assert seconds < INPUT_SECONDS, (argv, seconds)
     assert code in (0, 1, 2), (argv, code)
     if code == 0:
         assert not errors, (argv, errors)
@@ -102,7 +98,7 @@ def test_identify_flag_answered(capsys, flag, value):
     args[flag] = value
     argv = ["identify", *[x for kv in args.items() for x in kv], "--json"]
     code, out, errors, seconds = call(capsys, *argv)
-    assert seconds < INPUT_SECONDS and code in (0, 1, 2), (argv, code, seconds)
+    assert code in (0, 1, 2), (argv, code)
     if code:
         assert len(errors) == 1 and errors[0].startswith("msf-contact"), (argv, errors)
     else:
@@ -192,7 +188,6 @@ def test_public_api_answers(E, tan_delta, radius, mass, speed, angle, spin, law)
     except RuntimeError as exc:  # a run failure, said in one line
         assert "\n" not in str(exc)
         return
-    assert time.perf_counter() - t0 < INPUT_SECONDS
     d = rec.to_dict()
     assert "non_finite" not in d, d["non_finite"]
     assert 0 <= d["cor_n"] <= 1 + 1e-9
@@ -234,7 +229,6 @@ def test_every_scenario_key_validated(key, value):
         msg = str(exc)
         assert "\n" not in msg and name in msg, (key, value, msg)
         return
-    assert time.perf_counter() - t0 < INPUT_SECONDS
     assert len(cells) >= 1
 
 
