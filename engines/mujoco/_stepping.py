@@ -17,6 +17,22 @@ After a step MuJoCo's ``mj_advance`` sets qvel += h qacc', qpos = qpos (+) h
 qvel_new (Euler, implicit, implicitfast: the new velocity; RK4: the
 tableau's weighted velocity) and time += h.
 
+RK4 (``mj_RungeKutta``, stage i = 1..3 at X_i = X_0 (+) h sum_j A_ij K_j):
+the stage and final velocities are linear, v_i = v_0 + h sum_j A_ij a_j and
+v_new = v_0 + h sum_j B_j a_j, with a_3 (the last stage's acceleration)
+left in ``data.qacc_warmstart`` by ``mj_advance`` (``data.qacc`` is not
+it). The rotation of a free or ball joint is integrated two ways depending
+on the MuJoCo version: classically, K_j = the stage's angular velocity
+omega_j (MuJoCo <= 3.x, the source quoted above), or on the Lie group
+(Runge-Kutta-Munthe-Kaas, measured on MuJoCo 4.0.0: K_j =
+dexp^-1_{theta_j}(omega_j), theta_j = h sum_k A_jk K_k, with
+dexp^-1_theta(w) = w + theta x w / 2 + (1 - (|theta|/2) cot(|theta|/2))
+/|theta|^2 theta x (theta x w); Iserles, Munthe-Kaas, Norsett, Zanna, Acta
+Numerica 9 (2000) 215, eq. (3.21) for so(3)). The two differ by
+O(h^2 |omega| |domega|) (2e-6 on the ant's torso quaternion at 10 ms); a
+step is accepted when it is the image under either, so the tracker holds
+across MuJoCo versions without reading the version.
+
 :class:`StepTracker` classifies each call from ``data`` alone, so the
 contact state advances exactly once per step whoever calls the hook and how
 often:
@@ -58,6 +74,22 @@ JUMP_VTOL = 1e-7
 RK4_C = (0.5, 0.5, 1.0)
 #: RK4's weights (MuJoCo's RK4_B).
 RK4_B = (1.0 / 6.0, 1.0 / 3.0, 1.0 / 3.0, 1.0 / 6.0)
+#: RK4's stage matrix rows (MuJoCo's RK4_A, stages 1-3).
+RK4_A = ((0.5, 0.0, 0.0), (0.0, 0.5, 0.0), (0.0, 0.0, 1.0))
+#: Below this rotation [rad] dexp^-1's coefficient (1 - (a/2) cot(a/2))/a^2 is
+#: its series 1/12 + a^2/720 (the closed form loses digits to cancellation).
+_DEXPINV_SERIES_BELOW = 1e-3
+
+
+def dexpinv(theta: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """dexp^-1_theta(w) on so(3) (rows: (n, 3) arrays of rotation vectors
+    [rad] and angular velocities [rad/s]; the module docstring's formula)."""
+    a = np.linalg.norm(theta, axis=-1, keepdims=True)
+    small = a < _DEXPINV_SERIES_BELOW
+    a_safe = np.where(small, 1.0, a)
+    c = np.where(small, 1.0 / 12.0 + a * a / 720.0, (1.0 - 0.5 * a_safe / np.tan(0.5 * a_safe)) / (a_safe * a_safe))
+    tw = np.cross(theta, w)
+    return w + 0.5 * tw + c * np.cross(theta, tw)
 
 
 class StepTracker:
@@ -81,6 +113,16 @@ class StepTracker:
             a = int(model.jnt_qposadr[j])
             n = {int(mujoco.mjtJoint.mjJNT_FREE): 7, int(mujoco.mjtJoint.mjJNT_BALL): 4}.get(int(model.jnt_type[j]), 1)
             self._qtree[a:a + n] = model.body_treeid[model.jnt_bodyid[j]]
+        # the angular-velocity dofs of every free and ball joint, (n_rot, 3): RK4's Lie-group stages
+        rot = []
+        for j in range(model.njnt):
+            t, a = int(model.jnt_type[j]), int(model.jnt_dofadr[j])
+            if t == int(mujoco.mjtJoint.mjJNT_FREE):
+                rot.append(range(a + 3, a + 6))
+            elif t == int(mujoco.mjtJoint.mjJNT_BALL):
+                rot.append(range(a, a + 3))
+        self._rot = np.array(rot, dtype=int).reshape(-1, 3)
+        self._vbar = np.zeros(model.nv)
 
     def classify(self, d: mujoco.MjData) -> str:
         m = self.model
@@ -121,23 +163,51 @@ class StepTracker:
         """'' if (qpos, qvel) is the integrator's step from the start state,
         else what differs (and the trees that differ in ``jumped``)."""
         m = self.model
-        if rk4:
-            # qpos advanced with the weighted stage velocities (the new qvel also needs the last
-            # stage's acceleration, which MuJoCo does not keep: data.qacc differs from it with
-            # actuators, so a qvel written between RK4 steps alone is not detected)
-            vbar = sum(b * self.v[i] for i, b in enumerate(RK4_B))
-        else:
-            vbar = d.qvel  # semi-implicit: qpos advanced with the new velocity
-        # the step's qpos from the start state, by MuJoCo's own mj_integratePos (a rotation of
-        # more than pi per step, e.g. a spinning bead, is not recovered by differentiating)
-        self._q[:] = self.q0
-        mujoco.mj_integratePos(m, self._q, vbar, h)
         vmax = float(np.max(np.abs(d.qvel))) if m.nv else 0.0
         tol_q = JUMP_VTOL * h * (1.0 + vmax) + 1e-13 * (1.0 + np.abs(self.q0))
-        bad_q = np.abs(self._q - d.qpos) > tol_q
-        trees = set(self._qtree[bad_q].tolist())
+        if rk4:
+            # qpos advanced with the weighted stage velocities, the rotations of free and ball
+            # joints classically or on the Lie group (module docstring): either is a step
+            vbar = sum(b * self.v[i] for i, b in enumerate(RK4_B))
+            bad_q = np.abs(self._image(vbar, h) - d.qpos) > tol_q
+            if bad_q.any() and len(self._rot):
+                bad_q &= np.abs(self._image(self._vbar_lie(vbar, h), h) - d.qpos) > tol_q
+            # qvel: v_new = v_0 + h sum_j B_j a_j, a_0..a_2 from the stage velocities
+            # (h A_ij a_j = v_i - v_0), a_3 from data.qacc_warmstart (module docstring)
+            v0 = self.v[0]
+            v_new = (v0 + (self.v[1] - v0) / 3.0 + 2.0 * (self.v[2] - v0) / 3.0 + (self.v[3] - v0) / 3.0
+                     + (h / 6.0) * d.qacc_warmstart)
+            bad_v = np.abs(v_new - d.qvel) > JUMP_VTOL * (1.0 + np.abs(d.qvel))
+        else:
+            # semi-implicit: qpos advanced with the new velocity (a qvel written between steps
+            # breaks that too)
+            bad_q = np.abs(self._image(d.qvel, h) - d.qpos) > tol_q
+            bad_v = np.zeros(m.nv, dtype=bool)
+        trees = set(self._qtree[bad_q].tolist()) | set(m.dof_treeid[bad_v].tolist())
         if trees:
             self.jumped = np.array(sorted(trees))
             return (f"qpos/qvel of {len(trees)} kinematic tree(s) are not the step's image of the last state "
                     "(qpos or qvel written between steps)")
         return ""
+
+    def _image(self, vbar: np.ndarray, h: float) -> np.ndarray:
+        """The start qpos advanced by vbar over h with MuJoCo's own
+        mj_integratePos (a rotation of more than pi per step, e.g. a
+        spinning bead, is not recovered by differentiating)."""
+        self._q[:] = self.q0
+        mujoco.mj_integratePos(self.model, self._q, vbar, h)
+        return self._q
+
+    def _vbar_lie(self, vbar: np.ndarray, h: float) -> np.ndarray:
+        """vbar with the free and ball joints' angular part replaced by
+        sum_j B_j K_j, K_j = dexp^-1_{theta_j}(omega_j) (Runge-Kutta-Munthe-Kaas)."""
+        r = self._rot
+        w = [self.v[i][r] for i in range(4)]  # (n_rot, 3) each
+        K = [w[0]]
+        for i, row in enumerate(RK4_A, start=1):
+            theta = h * sum(a * K[j] for j, a in enumerate(row[:i]))
+            K.append(dexpinv(theta, w[i]))
+        out = self._vbar
+        out[:] = vbar
+        out[r] = sum(b * K[j] for j, b in enumerate(RK4_B))
+        return out
