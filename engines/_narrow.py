@@ -181,3 +181,28 @@ class SlotMatcher:
         # a slot neither matched nor busy forgets its point
         self.anchor[~taken & ~np.asarray(busy, bool)] = np.nan
         return out
+
+
+def check_contact_law(names: tuple, law_curvature: Curvature, shape1, pose1, shape2, pose2, point, normal,
+                      t: float) -> Curvature:
+    """The curvature of a narrow-phase contact about to begin, checked
+    against the pair's law (both engines: one law per pair). names: the two
+    geoms' (bodies', links') names for the message; the rest as
+    :func:`contact_curvature`; t [s] the engine time. ValueError, naming
+    both and what would make it work, for a contact the law cannot carry (a
+    line contact, two flat faces) or one whose effective radii (13) differ
+    from the law's by more than :func:`curvature_tolerance`."""
+    a, b = names
+    try:
+        curv = contact_curvature(shape1, pose1, shape2, pose2, point, normal)
+    except ValueError as exc:
+        raise ValueError(f"pair ({a!r}, {b!r}) at t = {t:.6g} s: {exc}; the engines have no law for it yet (a "
+                         "line contact's footprint law is in msf_contact only): use the built-in contact for this "
+                         "pair") from None
+    bad, tol = curvature_mismatch(law_curvature, curv), curvature_tolerance(shape1, shape2)
+    if bad > tol:
+        raise ValueError(
+            f"pair ({a!r}, {b!r}) at t = {t:.6g} s: the contact's curvature {curv} differs from the law's "
+            f"{law_curvature} by {bad:.3g} (> {tol}); the engines keep one law per pair: build the law with the "
+            "curvature at the contact (engines._narrow.contact_curvature / msf_contact.curvature.relative_curvature)")
+    return curv

@@ -254,17 +254,21 @@ class Mesh:
                              f"and <= the {v.shape[0]} vertices")
         object.__setattr__(self, "vertices", v)
 
-    def curvature(self, point, normal) -> SurfaceCurvature:
-        n = _unit(normal)
+    def _fit(self, point, n):
+        """The height field's tangent frame (t1, t2) and coefficients c
+        (columns 1, u, v, u^2, u v, v^2, then the higher orders) about ``point``."""
         p = np.asarray(point, dtype=float)
         t1, t2 = tangent_basis(n)
         d = self.vertices - p
         near = np.argpartition(np.einsum("ij,ij->i", d, d), self.neighbours - 1)[: self.neighbours]
         u, v, w = d[near] @ t1, d[near] @ t2, d[near] @ n
         degree = 4 if self.neighbours >= _QUARTIC_MIN else 2
-        # columns 1, u, v, u^2, u v, v^2, then the higher orders
         M = np.stack([u ** i * v ** (k - i) for k in range(degree + 1) for i in range(k, -1, -1)], axis=1)
-        c = np.linalg.lstsq(M, w, rcond=None)[0]
+        return t1, t2, np.linalg.lstsq(M, w, rcond=None)[0], float(np.sqrt(np.max(u * u + v * v)))
+
+    def curvature(self, point, normal) -> SurfaceCurvature:
+        n = _unit(normal)
+        t1, t2, c, _ = self._fit(point, n)
         g = c[1:3]
         H = np.array([[2.0 * c[3], c[4]], [c[4], 2.0 * c[5]]])
         S = -np.linalg.solve(np.eye(2) + np.outer(g, g), H) / math.sqrt(1.0 + g @ g)
@@ -274,6 +278,28 @@ class Mesh:
         k1, k2 = np.maximum(k[order], 0.0)
         e1 = _unit(vec[0, order[0]] * t1 + vec[1, order[0]] * t2, "fitted principal direction")
         return _sc(k1, k2, e1, np.cross(n, e1))
+
+    def support(self, point, normal) -> tuple[np.ndarray, float]:
+        """The smooth surface's point whose outward normal is ``normal``, near
+        ``point`` (a vertex the engine found deepest), and how much further out
+        along the normal it is [m]: the fitted height field's stationary point
+        (u, v) = -H^-1 g (its second-order part). A faceted mesh touches a
+        plane at a vertex that jumps across the bottom facet as the body turns
+        (a lever arm of up to an edge); the smooth surface the mesh stands for
+        touches under its centre of curvature. Falls back to ``point`` (offset
+        0) where the fit is not convex or the stationary point lies outside
+        the fitted vertices."""
+        n = _unit(normal)
+        p = np.asarray(point, dtype=float)
+        t1, t2, c, reach = self._fit(p, n)
+        H = np.array([[2.0 * c[3], c[4]], [c[4], 2.0 * c[5]]])
+        if not np.all(np.linalg.eigvalsh(H) < 0.0):
+            return p.copy(), 0.0
+        uv = -np.linalg.solve(H, c[1:3])
+        if not np.linalg.norm(uv) <= reach:
+            return p.copy(), 0.0
+        w = float(c[0] + c[1:3] @ uv + 0.5 * uv @ H @ uv)
+        return p + uv[0] * t1 + uv[1] * t2 + w * n, w
 
 
 SHAPES = {"sphere": Sphere, "ellipsoid": Ellipsoid, "capsule": Capsule, "cylinder": Cylinder, "box": Box,

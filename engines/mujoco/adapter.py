@@ -896,7 +896,7 @@ class MujocoAdapter(EngineAdapter):
         contact's onset the law's curvature is checked against the contact's
         (engines._narrow.contact_curvature); a slot MuJoCo no longer lists is
         a gap beyond the detection margin."""
-        from engines._narrow import contact_curvature, curvature_mismatch, curvature_tolerance
+        from engines._narrow import check_contact_law
 
         d = self.data
         found = self._narrow_points()[p.narrow][p.slot]
@@ -914,20 +914,9 @@ class MujocoAdapter(EngineAdapter):
         if not self.manager.active[p.index] and not self._narrow_checked[p.index]:  # about to touch
             g1, g2, s1, s2, _ = self._narrow_pairs[p.narrow]
             spec = self.pairs[p.index]
-            try:
-                curv = contact_curvature(s1, (d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3)),
-                                         s2, (d.geom_xpos[g2], d.geom_xmat[g2].reshape(3, 3)), point, n)
-            except ValueError as exc:
-                raise ValueError(f"pair ({spec.body1!r}, {spec.body2!r}) at t = {float(d.time):.6g} s: {exc}; "
-                                 "the engines have no law for it yet (a line contact's footprint law is in "
-                                 "msf_contact only): use the built-in contact for this pair") from None
-            bad, tol = curvature_mismatch(spec.law.curvature, curv), curvature_tolerance(s1, s2)
-            if bad > tol:
-                raise ValueError(
-                    f"pair ({spec.body1!r}, {spec.body2!r}) at t = {float(d.time):.6g} s: the contact's curvature "
-                    f"{curv} differs from the law's {spec.law.curvature} by {bad:.3g} (> {tol}); the "
-                    "engines keep one law per pair: build the law with the curvature at the contact "
-                    "(engines._narrow.contact_curvature / msf_contact.curvature.relative_curvature)")
+            check_contact_law((spec.body1, spec.body2), spec.law.curvature,
+                              s1, (d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3)),
+                              s2, (d.geom_xpos[g2], d.geom_xmat[g2].reshape(3, 3)), point, n, float(d.time))
             self._narrow_checked[p.index] = True
         return det
 

@@ -84,6 +84,8 @@ from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines._contacts.state import lever_terms_free
 from engines.pybullet.scenes import MAX_COORDINATE_VELOCITY
 from engines.base import STEPS_PER_CONTACT_MIN, ContactKinematics, EngineAdapter, PairSpec, check_law_curvature
+from engines.pybullet import narrow as _narrow
+from engines.pybullet.narrow import LinkShape
 
 #: A free body's centre of mass at a step start must be the last one plus dt
 #: times its velocity to ADVANCE_ATOL + ADVANCE_RTOL (|com| + dt |v|) [m]
@@ -115,18 +117,11 @@ CANDIDATE_FACTOR = 2.0
 HELD_MIN_STEPS = 4.0
 
 _SHAPE_NAMES = {pb.GEOM_SPHERE: "sphere", pb.GEOM_BOX: "box", pb.GEOM_CAPSULE: "capsule",
-                pb.GEOM_CYLINDER: "cylinder", pb.GEOM_PLANE: "plane", pb.GEOM_MESH: "mesh"}
-_SUPPORTED = ("sphere", "plane", "box")
-
-
-@dataclass(frozen=True)
-class _Shape:
-    """One collision shape in its link's inertial frame."""
-
-    kind: str  # "sphere", "plane", "box"
-    size: np.ndarray  # sphere: (radius,); box: half extents (3,); plane: unit normal (3,)
-    pos: np.ndarray  # (3,) [m] relative to the link's centre of mass
-    rot: np.ndarray  # (3, 3)
+                pb.GEOM_CYLINDER: "cylinder", pb.GEOM_PLANE: "plane", pb.GEOM_MESH: "mesh",
+                pb.GEOM_HEIGHTFIELD: "heightfield"}
+_SUPPORTED = ("sphere", "plane", "box", "capsule", "cylinder", "mesh")
+#: One collision shape in its link's inertial frame (engines.pybullet.narrow.LinkShape).
+_Shape = LinkShape
 
 
 @dataclass
@@ -185,8 +180,23 @@ class PybulletAdapter(EngineAdapter):
         pairs' contacts are interrupted). :meth:`close` (or leaving the
         ``with`` block) gives the pairs back to pybullet's own contact.
     pairs: PairSpec with ``body1``/``body2`` = (body unique id, link index),
-        link -1 the base; each link must carry exactly one collision shape,
-        a sphere, plane or box (a box is met on its faces only).
+        link -1 the base, or (body unique id, link index, k) for the k-th of
+        a link's shapes given in ``link_shapes``. A sphere on a plane, a
+        sphere or a box face is solved in closed form (:mod:`engines._geometry`);
+        every other pair of sphere, plane, box, capsule, cylinder and mesh
+        shapes through :mod:`engines.pybullet.narrow` (several contact points
+        per pair, the curvature at each point from :mod:`msf_contact.shapes`;
+        the law's curvature is checked at each contact's onset). body1 is the
+        curved body (not a plane).
+    edge_radii: {(body unique id, link index): edge radius [m]} of boxes and
+        cylinders (``msf_contact.shapes.DEFAULT_EDGE_RADIUS`` otherwise).
+    curvature: {(body unique id, link index): an msf_contact.shapes object}
+        whose curvature replaces the shape's own (an ellipsoid made as a mesh:
+        ``Ellipsoid(semi_axes)``; the mesh's own is a local fit).
+    link_shapes: {(body unique id, link index): [LinkShape, ...]} the link's
+        collision shapes, given where pybullet cannot report them
+        (``getCollisionShapeData`` ends the process on a loadMJCF capsule made
+        with fromto: engines.pybullet.robots gives them from the MJCF).
     compiled: do the per-step array work of the fast pairs (detection,
         velocities, a_ext, W, the cross-pair correction, the forces summed
         per body) in the numba kernels of :mod:`engines.pybullet._kernels`
@@ -196,7 +206,8 @@ class PybulletAdapter(EngineAdapter):
 
     name = "pybullet"
 
-    def __init__(self, client: int, pairs: list[PairSpec], compiled: bool = True):
+    def __init__(self, client: int, pairs: list[PairSpec], compiled: bool = True, *, edge_radii: dict | None = None,
+                 curvature: dict | None = None, link_shapes: dict | None = None):
         if not isinstance(client, int) or not pb.isConnected(client):
             raise ValueError(f"client = {client!r} is not a connected pybullet physics client")
         if not isinstance(compiled, bool):
@@ -211,25 +222,42 @@ class PybulletAdapter(EngineAdapter):
         if not self._dt > 0:
             raise ValueError(f"the client's time step = {self._dt!r} s must be > 0 (setTimeStep)")
         pairs = list(pairs)
+        self.edge_radii = {self._link_key(k, "edge_radii"): float(v) for k, v in (edge_radii or {}).items()}
+        self.curvature_shapes = {self._link_key(k, "curvature"): v for k, v in (curvature or {}).items()}
+        self._link_shapes = {self._link_key(k, "link_shapes"): list(v) for k, v in (link_shapes or {}).items()}
         self._bodies: list[tuple[tuple[int, int], tuple[int, int]]] = []
         self._shapes: list[tuple[_Shape, _Shape]] = []
+        #: the pairs carried by several contact slots (engines.pybullet.narrow); per slot (pair, slot) or (-1, 0)
+        self._narrow: list[_narrow.NarrowPair] = []
+        self._narrow_of: list[tuple[int, int]] = []
+        expanded = []
         for i, p in enumerate(pairs):
             if not isinstance(p, PairSpec):
                 raise ValueError(f"pairs[{i}] = {p!r} is not a PairSpec")
             b1, b2 = self._check_body(p.body1, f"pairs[{i}].body1"), self._check_body(p.body2, f"pairs[{i}].body2")
             if b1 == b2:
                 raise ValueError(f"pairs[{i}]: body1 and body2 are the same link {b1}")
-            s1, s2 = self._shape(b1, f"pairs[{i}].body1"), self._shape(b2, f"pairs[{i}].body2")
-            try:
-                _geometry.check_pair_supported(s1.kind, s2.kind)
-            except ValueError as e:
-                raise ValueError(f"pairs[{i}] ({b1}, {b2}): {e}") from None
+            s1, s2 = self._shape(p.body1, f"pairs[{i}].body1"), self._shape(p.body2, f"pairs[{i}].body2")
             if self._fixed(b1) and self._fixed(b2):
                 raise ValueError(f"pairs[{i}]: both {b1} and {b2} are fixed (mass 0)")
-            _check_curvature(i, p, s1, s2)
-            self._bodies.append((b1, b2))
-            self._shapes.append((s1, s2))
-        super().__init__(pairs)
+            try:
+                _geometry.check_pair_supported(s1.kind, s2.kind)
+                analytic = b1 not in self.curvature_shapes and b2 not in self.curvature_shapes
+            except ValueError:
+                analytic = False
+            if analytic:  # the closed-form paths (engines._geometry), kept as they are
+                _check_curvature(i, p, s1, s2)
+                self._bodies.append((b1, b2))
+                self._shapes.append((s1, s2))
+                self._narrow_of.append((-1, 0))
+                expanded.append(p)
+                continue
+            for q in range(self._add_narrow(i, p, b1, b2, s1, s2)):
+                self._bodies.append((b1, b2))
+                self._shapes.append((s1, s2))
+                self._narrow_of.append((len(self._narrow) - 1, q))
+                expanded.append(p)
+        super().__init__(expanded)
         for (u1, l1), (u2, l2) in self._bodies:
             pb.setCollisionFilterPair(u1, u2, l1, l2, enableCollision=0, physicsClientId=client)
         self._setup_batches()
@@ -273,14 +301,20 @@ class PybulletAdapter(EngineAdapter):
         self.edge_handoffs = 0
         self.edge_handoffs_of: dict[int, int] = {}
         self._held_warned: set[int] = set()  # held pairs warned about a too coarse step (_flag_held)
+        # the narrow pairs' points of this step, per slot (x, point, normal) or None (beyond the reach)
+        self._narrow_found: list = [None] * n
+        self._narrow_checked = np.zeros(n, bool)  # the slot's curvature was checked against its law
 
     # -- validation ---------------------------------------------------------
     def _check_body(self, b, label):
         c = self.client
         try:
             uid, link = int(b[0]), int(b[1])
+            if len(b) not in (2, 3):
+                raise ValueError
         except (TypeError, ValueError, IndexError):
-            raise ValueError(f"{label} = {b!r}: give (body unique id, link index)") from None
+            raise ValueError(f"{label} = {b!r}: give (body unique id, link index) or (body unique id, link index, "
+                             "shape index in link_shapes)") from None
         ids = [pb.getBodyUniqueId(k, physicsClientId=c) for k in range(pb.getNumBodies(physicsClientId=c))]
         if uid not in ids:
             raise ValueError(f"{label}: body unique id {uid} is not in the model (bodies: {ids})")
@@ -398,23 +432,77 @@ class PybulletAdapter(EngineAdapter):
     def _articulated(self, b):
         return b[1] >= 0
 
-    def _shape(self, b, label) -> _Shape:
+    def _link_key(self, k, what) -> tuple[int, int]:
+        try:
+            return int(k[0]), int(k[1])
+        except (TypeError, ValueError, IndexError):
+            raise ValueError(f"{what}: key {k!r} must be (body unique id, link index)") from None
+
+    def _shape(self, spec, label) -> _Shape:
+        """The collision shape of a pair's body ``spec`` ((uid, link) or (uid,
+        link, k)): from ``link_shapes`` if given for the link, else pybullet's
+        getCollisionShapeData (exactly one shape)."""
+        b = (int(spec[0]), int(spec[1]))
+        if b in self._link_shapes:
+            shapes = self._link_shapes[b]
+            k = int(spec[2]) if len(spec) == 3 else None
+            if k is None and len(shapes) != 1:
+                raise ValueError(f"{label} {b}: the link has {len(shapes)} shapes in link_shapes; give "
+                                 "(body unique id, link index, k), one pair per shape")
+            k = 0 if k is None else k
+            if not 0 <= k < len(shapes):
+                raise ValueError(f"{label} {spec}: shape index {k} is outside [0, {len(shapes) - 1}]")
+            shape = shapes[k]
+            if not isinstance(shape, LinkShape) or shape.kind not in _SUPPORTED:
+                raise ValueError(f"{label} {spec}: link_shapes entries must be engines.pybullet.narrow.LinkShape of "
+                                 f"kind {', '.join(_SUPPORTED)}, got {shape!r}")
+            return shape
+        if len(spec) == 3:
+            raise ValueError(f"{label} = {spec!r}: a shape index needs the link's shapes in link_shapes")
         data = pb.getCollisionShapeData(b[0], b[1], physicsClientId=self.client)
+        if not data:
+            raise ValueError(f"{label} {b}: pybullet reports no collision shape for it (getCollisionShapeData is "
+                             "empty: a height field, or no collision shape); MSF needs the curvature at the contact: "
+                             "give the link's shapes in link_shapes, or use pybullet's own contact for this pair")
         if len(data) != 1:
-            raise ValueError(f"{label} {b}: has {len(data)} collision shapes; exactly one (sphere, plane or box) "
-                             "is supported")
+            raise ValueError(f"{label} {b}: has {len(data)} collision shapes; give them in link_shapes "
+                             "(engines.pybullet.narrow.LinkShape) and one pair per shape, (uid, link, k)")
         _, _, gtype, dims, _, lpos, lorn = data[0]
         kind = _SHAPE_NAMES.get(gtype, f"geometry type {gtype}")
         if kind not in _SUPPORTED:
-            raise ValueError(f"{label} {b}: collision shape {kind!r} is not supported (MSF needs smooth "
-                             f"curvature); supported: {', '.join(_SUPPORTED)}")
+            raise ValueError(f"{label} {b}: collision shape {kind!r} has no curvature model (MSF needs the "
+                             f"curvature at the contact); supported: {', '.join(_SUPPORTED)}; use pybullet's own "
+                             "contact for this pair")
+        vertices, margin = None, 0.0
         if kind == "sphere":
             size = np.array([dims[0]])
         elif kind == "box":
             size = 0.5 * np.asarray(dims, dtype=float)  # getCollisionShapeData gives full extents
+        elif kind in ("capsule", "cylinder"):
+            size = np.array([dims[1], 0.5 * dims[0]])  # (height, radius) -> (radius, half-length)
+        elif kind == "mesh":
+            size = np.asarray(dims, dtype=float)  # the scale
+            vertices = np.asarray(pb.getMeshData(b[0], b[1], physicsClientId=self.client)[1], dtype=float)
+            # a convex hull is inflated by its collision margin in getClosestPoints (engines.pybullet.narrow)
+            margin = float(pb.getDynamicsInfo(b[0], b[1], physicsClientId=self.client)[11])
         else:
             size = np.asarray(dims, dtype=float) / np.linalg.norm(dims)
-        return _Shape(kind, size, np.asarray(lpos, dtype=float), _mat(lorn))
+        return _Shape(kind, size, np.asarray(lpos, dtype=float), _mat(lorn), vertices, margin)
+
+    def _add_narrow(self, i, p: PairSpec, b1, b2, s1: _Shape, s2: _Shape) -> int:
+        """Set pair i up for engines.pybullet.narrow; return its number of slots."""
+        from engines._narrow import SlotMatcher
+
+        if s1.kind == "plane":
+            raise ValueError(f"pairs[{i}]: body1 = {b1} is a plane; body1 must be the curved body (the normal points "
+                             "from body2 to body1): swap body1 and body2")
+        geoms = []
+        for b, s in ((b1, s1), (b2, s2)):
+            geoms.append(self.curvature_shapes.get(b) or _narrow.msf_shape(s, self.edge_radii.get(b)))
+        n = _narrow.slots_of(s1.kind, s2.kind)
+        self._narrow.append(_narrow.NarrowPair(len(self._bodies), b1, b2, s1, s2, geoms[0], geoms[1],
+                                               SlotMatcher(n, s1.extent()), _narrow.pair_method(s1.kind, s2.kind)))
+        return n
 
     # -- held links (issue 11, item 6) ---------------------------------------
     def held_pairs(self) -> set[int]:
@@ -506,12 +594,19 @@ class PybulletAdapter(EngineAdapter):
         code = {"msf": 0, "engine": 1, "off": 2}.get(mode)
         if code is None:
             raise ValueError(f"mode = {mode!r} must be 'msf', 'engine' or 'off'")
-        i = self._pair_index(which)
-        if self._mode[i] == 0 and code != 0:
-            self.manager.interrupt([i], f"switched to {mode!r} by set_mode")
-        self._have_last[i] = False
-        self._mode[i] = code
-        self._filter(i)
+        for i in self._slots_of(self._pair_index(which)):  # every contact slot of the pair
+            if self._mode[i] == 0 and code != 0:
+                self.manager.interrupt([i], f"switched to {mode!r} by set_mode")
+            self._have_last[i] = False
+            self._mode[i] = code
+            self._filter(i)
+
+    def _slots_of(self, i: int) -> list[int]:
+        """The contact slots of the PairSpec that pair i belongs to."""
+        k = self._narrow_of[i][0]
+        if k < 0:
+            return [i]
+        return list(range(self._narrow[k].first, self._narrow[k].first + self._narrow[k].n))
 
     def mode(self, which) -> str:
         """The pair's mode ("msf", "engine" or "off"; an edge handoff counts as "engine")."""
@@ -638,6 +733,8 @@ class PybulletAdapter(EngineAdapter):
     def _detect(self, i, poses, margin=math.inf):
         """(x, n body2->body1, point mid-overlap) of pair i (:mod:`engines._geometry`); against a
         plane or a box face, the sphere's surface point at a gap."""
+        if self._narrow_of[i][0] >= 0:
+            return self._narrow_slot(i, poses)
         (s1, s2) = self._shapes[i]
         c1, R1 = self._world_shape(s1, poses[0])
         c2, R2 = self._world_shape(s2, poses[1])
@@ -665,7 +762,9 @@ class PybulletAdapter(EngineAdapter):
         return np.array([par[k] for k in ("gravityAccelerationX", "gravityAccelerationY", "gravityAccelerationZ")])
 
     def _kinematics(self, bodies: _Bodies, grav, required):
-        """Rows of the pairs done one by one (box faces, links)."""
+        """Rows of the pairs done one by one (box faces, links, the narrow pairs)."""
+        if self._narrow:
+            self._narrow_points(bodies, grav, required)
         rows = []
         for i in self._slow:
             b1, b2 = self._bodies[i]
@@ -684,20 +783,64 @@ class PybulletAdapter(EngineAdapter):
             rows.append((i, x, nrm, point, v_rel, v_com_rel, a_ext, poses))
         return rows
 
+    def _narrow_points(self, bodies: _Bodies, grav, required) -> None:
+        """The points of every narrow pair at this step's poses
+        (engines.pybullet.narrow.detect), each given a slot
+        (engines._narrow.SlotMatcher: a corner keeps its slot while it
+        touches), into ``_narrow_found``. The reach: what the surfaces can
+        close in a step at the bodies' speeds (x CANDIDATE_FACTOR), at least
+        narrow.REACH_FLOOR."""
+        for np_ in self._narrow:
+            i0 = np_.first
+            j1, j2 = self._slot[i0]
+            poses = (bodies.pose(j1), bodies.pose(j2))
+            reach = max(self._closing_bound(i0, poses, grav), _narrow.REACH_FLOOR)
+            x, pts, nrm = _narrow.detect(np_, (poses[0].com, poses[0].rot), (poses[1].com, poses[1].rot), reach,
+                                         self.client)
+            local = (pts - poses[0].com) @ poses[0].rot
+            slots = np_.matcher.assign(local, x, required[i0:i0 + np_.n])
+            for q in range(np_.n):
+                self._narrow_found[i0 + q] = None
+            for k, q in enumerate(slots):
+                if q >= 0:
+                    self._narrow_found[i0 + q] = (float(x[k]), pts[k], nrm[k])
+
+    def _narrow_slot(self, i, poses):
+        """(x, n, point) of narrow slot i from this step's points; a slot
+        without a point is far (x = -1 m, as the MuJoCo adapter). At a
+        contact's onset the law's curvature is checked against the contact's
+        (engines._narrow.check_contact_law)."""
+        from engines._narrow import check_contact_law
+
+        found = self._narrow_found[i]
+        if found is None:
+            self._narrow_checked[i] = False
+            return -1.0, np.array([0.0, 0.0, 1.0]), poses[0].com.copy()
+        x, point, n = found
+        if not self.manager.active[i] and not self._narrow_checked[i]:
+            np_ = self._narrow[self._narrow_of[i][0]]
+            pose1 = self._world_shape(np_.shape1, poses[0])
+            pose2 = self._world_shape(np_.shape2, poses[1])
+            check_contact_law(self.pair_names[i], self.pairs[i].law.curvature, np_.geom1, pose1, np_.geom2, pose2,
+                              point, n, self.time)
+            self._narrow_checked[i] = True
+        return x, n.copy(), point.copy()
+
+    def _closing_bound(self, i, poses, grav) -> float:
+        """A bound on the distance the surfaces of pair i can close within one step [m]."""
+        ext = [float(s.size[0]) if s.kind == "sphere" else float(np.linalg.norm(s.pos)) + s.extent()
+               for s in self._shapes[i]]
+        vb = (np.linalg.norm(poses[0].v - poses[1].v) + np.linalg.norm(poses[0].w) * ext[0]
+              + np.linalg.norm(poses[1].w) * ext[1])
+        ab = np.linalg.norm(self._last_a_ext[i]) if self._have_last[i] else 2.0 * np.linalg.norm(grav)
+        return CANDIDATE_FACTOR * (vb * self._dt + 0.5 * ab * self._dt**2)
+
     def _edge_margin(self, i, poses, grav, required) -> float:
         """Gap below which a sphere over a box edge is refused: a bound on the
         distance the surfaces can close within one step (inf while in contact)."""
         if required[i]:
             return math.inf
-        ext = [float(s.size[0]) if s.kind == "sphere" else float(np.linalg.norm(s.pos) + np.linalg.norm(s.size))
-               for s in self._shapes[i]]
-        vb = (np.linalg.norm(poses[0].v - poses[1].v) + np.linalg.norm(poses[0].w) * ext[0]
-              + np.linalg.norm(poses[1].w) * ext[1])
-        if self._have_last[i]:
-            ab = np.linalg.norm((self._last_a_ext[i]))
-        else:
-            ab = 2.0 * np.linalg.norm(grav)
-        return CANDIDATE_FACTOR * (vb * self._dt + 0.5 * ab * self._dt**2)
+        return self._closing_bound(i, poses, grav)
 
     def _free(self, b) -> float:
         return 1.0 if (not self._articulated(b) and not self._fixed(b)) else 0.0

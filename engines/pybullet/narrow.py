@@ -1,0 +1,309 @@
+"""Contact points of the pybullet pairs that are not the analytic ones
+(issue 13): box, capsule, cylinder and mesh shapes, with the curvature the
+MSF law needs at each point (:mod:`engines._narrow`, :mod:`msf_contact.shapes`).
+
+Where the points come from, per pair of shapes (body 1 first):
+
+- **shape on a plane** (box, capsule, cylinder; the robot-floor case): the
+  shape's support features in closed form, all of them within the candidate
+  reach: a box's 8 corners, a capsule's 2 end spheres, a cylinder's rim
+  points (per cap the rim point nearest the plane; 4 points 90 degrees apart
+  when the cap lies flat). pybullet's ``getClosestPoints`` lists only the
+  deepest point of such a pair (measured: one corner of a box lying on a
+  face, one end of a capsule lying flat), where a box face rests on four
+  corners; MuJoCo's narrow phase lists them all, and these are the same
+  points. A corner's distance is the sharp box's (what pybullet collides);
+  its curvature is the sphere of the edge radius, as in the MuJoCo adapter.
+- **a sphere on a capsule or a cylinder** (either way round): the sphere
+  centre's closest point on the segment or on the solid cylinder, exact.
+  pybullet's GJK answer for a sphere on a cylinder's side is off by up to
+  1e-5 m in distance and 3e-3 rad in normal (measured against the exact
+  distance at -0.5 to 1 mm overlap), 1-2 % of the approach of a rubber
+  impact (tests/test_narrow_pybullet.py).
+- **everything else** (a mesh, box on box, capsule on box, ...): pybullet's
+  own narrow phase, ``getClosestPoints`` with the candidate reach as its
+  distance threshold, one point per pair. A convex-hull mesh is inflated by
+  its collision margin (``getDynamicsInfo`` item 11, 1 mm by default;
+  measured: a vertex 0.5 mm above a plane is reported at -0.5 mm): the
+  distance and the points are corrected by it.
+
+pybullet has no ellipsoid: an ellipsoid is a convex-hull mesh whose
+vertices lie on the ellipsoid (:func:`ellipsoid_vertices`, a "cubed
+sphere" with a vertex at each of the six tips), with the analytic
+:class:`msf_contact.shapes.Ellipsoid` given as its curvature
+(``PybulletAdapter(..., curvature={link: Ellipsoid(...)})``); without that
+a mesh's curvature is the local fit of :class:`msf_contact.shapes.Mesh`.
+
+Conventions of :mod:`engines.base`: the normal points from body 2 toward
+body 1; x > 0 is overlap.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+import pybullet as pb
+
+from engines._narrow import Plane, SlotMatcher, make_shape
+from msf_contact.curvature import tangent_basis
+
+#: Shapes this module finds contacts for (with the analytic sphere pairs of
+#: engines._geometry, everything pybullet's createCollisionShape makes).
+NARROW_KINDS = ("sphere", "plane", "box", "capsule", "cylinder", "mesh")
+#: Points managed per pair: a box face on a plane rests on 4 corners, a
+#: cylinder's cap on 4 rim points, a capsule lying flat on its 2 end spheres;
+#: a mesh is one smooth convex surface (its deepest point only), as in the
+#: MuJoCo adapter (engines.mujoco.adapter.NARROW_SLOTS).
+NARROW_SLOTS = {"box": 4, "cylinder": 4, "capsule": 2}
+#: A cylinder's cap lies flat on a plane when the plane normal's component
+#: across the axis is below this [-]: its rim is then listed as 4 points.
+FLAT_CAP = 1e-6
+#: Smallest candidate reach [m] (float rounding of a resting contact, and
+#: pybullet's getClosestPoints threshold): as engines.mujoco.narrow's floor
+#: of 1 mm for the detection margin.
+REACH_FLOOR = 1e-3
+
+
+@dataclass(frozen=True)
+class LinkShape:
+    """One collision shape of a link, in the link's inertial frame.
+
+    kind: sphere, plane, box, capsule, cylinder or mesh. size: sphere
+    (radius,); box half-extents (3,); plane its unit normal (3,); capsule
+    and cylinder (radius, half-length of the segment / of the height), the
+    axis along the shape frame's z; mesh its scale (3,) [m]. pos (3,) [m],
+    rot (3, 3): the shape frame in the link's inertial frame. vertices (n, 3)
+    [m]: a mesh's convex-hull vertices in the shape frame; margin [m]: the
+    distance by which pybullet inflates the shape in getClosestPoints (a
+    convex hull's collision margin; 0 for the primitives).
+    """
+
+    kind: str
+    size: np.ndarray
+    pos: np.ndarray
+    rot: np.ndarray
+    vertices: np.ndarray | None = field(default=None, repr=False)
+    margin: float = 0.0
+
+    def extent(self) -> float:
+        """The shape's bounding radius about its frame's origin [m] (slot matching, reach bounds)."""
+        s = np.asarray(self.size, dtype=float)
+        if self.kind == "sphere":
+            return float(s[0])
+        if self.kind == "capsule":
+            return float(s[0] + s[1])
+        if self.kind == "cylinder":
+            return float(math.hypot(s[0], s[1]))
+        if self.kind == "mesh" and self.vertices is not None:
+            return float(np.max(np.linalg.norm(self.vertices, axis=1)))
+        return float(np.linalg.norm(s))
+
+
+def ellipsoid_vertices(semi_axes, n: int = 12) -> np.ndarray:
+    """Vertices (V, 3) [m] on the ellipsoid of ``semi_axes`` (a, b, c) [m]:
+    a cube's faces divided in n x n squares (n even), projected on the unit
+    sphere and scaled. The six face centres are the ellipsoid's tips, so a
+    drop along a principal axis touches first at a vertex that is exactly
+    the tip. n = 12: 866 vertices, 1,728 hull faces."""
+    if int(n) != n or n < 2 or n % 2:
+        raise ValueError(f"n = {n!r} must be an even whole number >= 2 (a vertex at each face centre)")
+    t = np.linspace(-1.0, 1.0, int(n) + 1)
+    u, v = (g.ravel() for g in np.meshgrid(t, t))
+    one = np.ones_like(u)
+    faces = []
+    for axis in range(3):
+        for sign in (-1.0, 1.0):
+            p = np.empty((u.size, 3))
+            p[:, axis] = sign * one
+            p[:, (axis + 1) % 3], p[:, (axis + 2) % 3] = u, v
+            faces.append(p)
+    p = np.unique(np.round(np.concatenate(faces), 12), axis=0)
+    p /= np.linalg.norm(p, axis=1)[:, None]
+    return p * np.asarray(semi_axes, dtype=float)
+
+
+def msf_shape(shape: LinkShape, edge_radius: float | None = None):
+    """The :mod:`msf_contact.shapes` object of a pybullet shape (MuJoCo's size
+    conventions, which LinkShape uses)."""
+    if shape.kind == "plane":
+        return Plane()
+    return make_shape(shape.kind, shape.size, edge_radius=edge_radius, vertices=shape.vertices)
+
+
+def _world(shape: LinkShape, pose) -> tuple[np.ndarray, np.ndarray]:
+    """(origin (3,), rotation (3, 3)) of the shape frame in the world; pose: (com, rot) of the link."""
+    com, rot = pose
+    return com + rot @ shape.pos, rot @ shape.rot
+
+
+def features_on_plane(shape: LinkShape, pos, rot, p0, nz):
+    """The support features of a box, capsule or cylinder (frame ``pos``,
+    ``rot`` in the world) against the plane through ``p0`` with unit normal
+    ``nz`` (world): (x (k,) approach [m], the shape's surface points (k, 3)
+    [m] in the world). Box: its 8 corners; capsule: the lowest point of each
+    end sphere; cylinder: per cap the rim point nearest the plane, or 4 rim
+    points when the cap lies flat (FLAT_CAP)."""
+    s = np.asarray(shape.size, dtype=float)
+    if shape.kind == "box":
+        signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
+        pts = pos + (signs * s) @ rot.T
+    elif shape.kind == "capsule":
+        ends = pos + np.outer([-s[1], s[1]], rot[:, 2])
+        pts = ends - s[0] * nz
+    elif shape.kind == "cylinder":
+        a = rot[:, 2]
+        across = nz - (nz @ a) * a
+        na = np.linalg.norm(across)
+        if na > FLAT_CAP:
+            dirs = (-across / na)[None]
+        else:
+            t1, t2 = tangent_basis(a)
+            dirs = np.array([t1, t2, -t1, -t2])
+        pts = np.concatenate([pos + h * a + s[0] * dirs for h in (-s[1], s[1])])
+    else:
+        raise ValueError(f"shape kind {shape.kind!r} has no closed-form features on a plane")
+    return -((pts - p0) @ nz), pts
+
+
+def sphere_closest(shape: LinkShape, pos, rot, centre):
+    """The closest point of a capsule or a solid cylinder (frame ``pos``,
+    ``rot``) to the point ``centre`` (3,) (a sphere's centre), all in the
+    world: (signed distance [m] (negative inside), surface point (3,),
+    outward unit normal (3,))."""
+    s = np.asarray(shape.size, dtype=float)
+    p = rot.T @ (np.asarray(centre, float) - pos)
+    r, h = float(s[0]), float(s[1])
+    rho = math.hypot(p[0], p[1])
+    radial = np.array([p[0], p[1], 0.0]) / rho if rho > 0.0 else np.array([1.0, 0.0, 0.0])
+    axial = np.array([0.0, 0.0, 1.0 if p[2] >= 0.0 else -1.0])
+    if shape.kind == "capsule":
+        seg = np.array([0.0, 0.0, min(max(p[2], -h), h)])
+        d = p - seg
+        L = float(np.linalg.norm(d))
+        n = d / L if L > 0.0 else radial
+        dist, q = L - r, seg + r * n
+    elif shape.kind == "cylinder":
+        dr, dz = rho - r, abs(p[2]) - h
+        if dr > 0.0 and dz > 0.0:  # beyond the rim
+            dist = math.hypot(dr, dz)
+            n = (dr * radial + dz * axial) / dist
+            q = r * radial + h * axial
+        elif dr >= dz:  # the side is nearer (or the only one outside)
+            dist, n = dr, radial
+            q = np.array([r * radial[0], r * radial[1], p[2]])
+        else:
+            dist, n = dz, axial
+            q = np.array([p[0], p[1], h * axial[2]])
+    else:
+        raise ValueError(f"shape kind {shape.kind!r} has no closed-form closest point")
+    return float(dist), pos + rot @ q, rot @ n
+
+
+@dataclass
+class NarrowPair:
+    """One PairSpec carried by several managed contacts (slots): its links,
+    shapes, the msf_contact shapes for the curvature, and the slot matcher."""
+
+    first: int  # index of the first slot among the adapter's pairs
+    link1: tuple  # (body unique id, link index)
+    link2: tuple
+    shape1: LinkShape
+    shape2: LinkShape
+    geom1: object  # msf_contact.shapes of each (curvature)
+    geom2: object
+    matcher: SlotMatcher
+    method: str  # "plane" (features on a plane), "sphere" (a sphere on a capsule/cylinder), "engine"
+
+    @property
+    def n(self) -> int:
+        return self.matcher.n
+
+
+def pair_method(kind1: str, kind2: str) -> str:
+    """How the points of a pair of shape kinds are found (module docstring)."""
+    if kind2 == "plane" and kind1 in ("box", "capsule", "cylinder"):
+        return "plane"
+    if {kind1, kind2} in ({"sphere", "capsule"}, {"sphere", "cylinder"}):
+        return "sphere"
+    return "engine"
+
+
+def slots_of(kind1: str, kind2: str) -> int:
+    return max(NARROW_SLOTS.get(kind1, 1), NARROW_SLOTS.get(kind2, 1) if kind2 != "plane" else 1)
+
+
+def detect(np_: NarrowPair, pose1, pose2, reach: float, client: int):
+    """The pair's contact points within ``reach`` [m] at the poses ((com,
+    rot) of each link): (x (k,) approach [m], point (k, 3) midway between the
+    surfaces [m], normal (k, 3) from body 2 to body 1)."""
+    s1, s2 = np_.shape1, np_.shape2
+    c1, R1 = _world(s1, pose1)
+    c2, R2 = _world(s2, pose2)
+    if np_.method == "plane":
+        nz = R2 @ (np.asarray(s2.size, float) / np.linalg.norm(s2.size))
+        x, p1 = features_on_plane(s1, c1, R1, c2, nz)
+        keep = x > -reach
+        x, p1 = x[keep], p1[keep]
+        normal = np.repeat(nz[None], x.size, axis=0)
+        return x, p1 + 0.5 * x[:, None] * normal, normal
+    if np_.method == "sphere":
+        if s1.kind == "sphere":
+            centre, r = c1, float(s1.size[0])
+            dist, q, n_out = sphere_closest(s2, c2, R2, centre)
+            n = n_out  # body 2's outward normal points to body 1
+        else:
+            centre, r = c2, float(s2.size[0])
+            dist, q, n_out = sphere_closest(s1, c1, R1, centre)
+            n = -n_out
+        x = r - dist
+        if not x > -reach:
+            return np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))
+        # q on the capsule/cylinder; the sphere's point nearest it is centre - r n_out
+        mid = 0.5 * (q + centre - r * n_out)
+        return np.array([x]), mid[None], n[None]
+    (u1, l1), (u2, l2) = np_.link1, np_.link2
+    rows = pb.getClosestPoints(u1, u2, reach + s1.margin + s2.margin + SMOOTH_REACH, l1, l2, physicsClientId=client)
+    if not rows:
+        return np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))
+    x = np.array([-(r[8] + s1.margin + s2.margin) for r in rows])
+    n = np.array([r[7] for r in rows], dtype=float)
+    pa = np.array([r[5] for r in rows], dtype=float) + s1.margin * n  # A's surface inside its margin
+    pb_ = np.array([r[6] for r in rows], dtype=float) - s2.margin * n
+    for k in range(x.size):  # a mesh's vertex -> the smooth surface it stands for
+        pa[k], w1 = smooth_point(np_.geom1, s1, (c1, R1), pa[k], -n[k])
+        pb_[k], w2 = smooth_point(np_.geom2, s2, (c2, R2), pb_[k], n[k])
+        x[k] += w1 + w2
+    keep = x > -reach
+    return x[keep], 0.5 * (pa + pb_)[keep], n[keep]
+
+
+#: Extra getClosestPoints reach [m] for the smooth surface of a mesh, which
+#: lies up to a facet's sagitta beyond its vertices.
+SMOOTH_REACH = 1e-3
+
+
+def smooth_point(geom, shape: LinkShape, frame, point, outward):
+    """A mesh shape's point moved from the vertex pybullet found to the smooth
+    surface the mesh stands for (msf_contact.shapes.Mesh.support: the fitted
+    surface; an Ellipsoid given as the mesh's curvature: its exact point with
+    that normal), and the distance it moved outward [m]; other shapes: as they
+    are. frame: the shape's (origin, rotation) in the world; point (3,),
+    outward (3,) world."""
+    if shape.kind != "mesh":
+        return point, 0.0
+    pos, rot = frame
+    local, out = rot.T @ (point - pos), rot.T @ outward
+    if hasattr(geom, "support"):
+        q, _ = geom.support(local, out)
+    elif hasattr(geom, "point_of_normal"):
+        q = geom.point_of_normal(out)
+    else:
+        return point, 0.0
+    w = float((q - local) @ out)
+    return pos + rot @ q, w
+
+
+__all__ = ["LinkShape", "NarrowPair", "NARROW_KINDS", "NARROW_SLOTS", "detect", "ellipsoid_vertices",
+           "features_on_plane", "msf_shape", "pair_method", "slots_of", "sphere_closest"]
