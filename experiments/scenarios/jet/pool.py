@@ -431,7 +431,8 @@ class JetPool:
                 "angle_deg": ang, "x": x, "y": y, "x_record": xr, "y_record": yr, "E_in": E, "cor_n": rec.cor_n,
                 "cor_t": rec.cor_t, "cor_t_contact": rec.cor_t_contact, "tau": rec.tau, "x_max": rec.x_max,
                 "F_max": rec.F_max, "Pc_max": rec.Pc_max, "W_diss_n": rec.W_diss_n, "W_diss_t": rec.W_diss_t,
-                "Q_t": rec.Q_t, "spin_out": rec.spin_out, "omega_x": rec.omega_x, "ended_by": rec.ended_by,
+                "Q_t": rec.Q_t, "spin_in": rec.spin_in, "spin_out": rec.spin_out, "omega_x": rec.omega_x,
+                "ended_by": rec.ended_by,
                 "outside_validity": "; ".join(rec.outside_validity), "repeat": rep, "deflected": defl,
             }
         return k, out

@@ -1,0 +1,81 @@
+"""The jet's records against msf_contact's reference solver (issue 10 item 5):
+the numbers docs/jet.md quotes.
+
+    .venv/bin/python scripts/jet_check.py reference     # plate impacts: cor_t, spin_out, W_diss_t, cor_n
+
+``reference``: the jet of tests/test_jet.py (0.2 and 0.3 mm glass beads at
+30 +- 3 m/s on polyurethane, 45 deg axis, 20 deg cone, 2e4 particles/s,
+dt = 0.1 ms, a pool of 6 per class, 40 impacts) in MuJoCo and pybullet;
+each row against :func:`msf_contact.simulate_impact` at the row's
+``speed_in``, ``angle_deg`` and ``spin_in``: the largest relative error of
+cor_t, spin_out and W_diss_t, the largest absolute error of cor_n, and the
+ranges of the inputs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import warnings
+
+from experiments.scenarios.jet import JetSpec, Nozzle, Particles, Plate, make_pool
+from msf_contact import Body, ValidityWarning, preset, simulate_impact
+
+ENGINES = ("mujoco", "pybullet")
+
+
+def tests_jet_spec() -> JetSpec:
+    """The jet of tests/test_jet.py's ``small_spec``."""
+    return JetSpec(Nozzle.aimed((0.0, 0.0), (math.sqrt(0.5), 0.0, -math.sqrt(0.5)), 0.02, 20.0, 1e-3),
+                   Particles(preset("glass"), (2.0e-4, 3.0e-4), (0.5, 0.5), 30.0, 3.0, 2e4),
+                   Plate(preset("polyurethane")), dt=1e-4, pool=6)
+
+
+def run_rows(engine: str, spec: JetSpec, impacts: int, seed=0):
+    rows: list[dict] = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ValidityWarning)
+        with make_pool(engine, spec, seed) as pool:
+            pool.run(impacts, sink=rows.extend)
+    return pool, rows
+
+
+def reference(impacts: int = 40) -> None:
+    spec = tests_jet_spec()
+    laws = spec.plate_laws()
+    plate = Body.half_space(spec.plate.material)
+    print("| engine | impacts | speed_in [m/s] | angle [deg] | x_max/R | cor_t | spin_out | W_diss_t | cor_n (abs) |")
+    print("|---|---:|---|---|---|---:|---:|---:|---:|")
+    for engine in ENGINES:
+        _, rows = run_rows(engine, spec, impacts)
+        imp = [r for r in rows if r["kind"] == "impact"]
+        worst = dict.fromkeys(("cor_t", "spin_out", "W_diss_t", "cor_n"), 0.0)
+        for r in imp:
+            ball = Body.sphere(spec.particles.material, r["radius"])
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore", ValidityWarning)
+                ref = simulate_impact(laws[r["cls"]], ball, plate, r["speed_in"], r["angle_deg"], r["spin_in"],
+                                      tangential=spec.tangential)
+            for k in ("cor_t", "spin_out", "W_diss_t"):
+                worst[k] = max(worst[k], abs(r[k] - getattr(ref, k)) / abs(getattr(ref, k)))
+            worst["cor_n"] = max(worst["cor_n"], abs(r["cor_n"] - ref.cor_n))
+
+        def rng(key, f=lambda r, k: r[k]):
+            v = [f(r, key) for r in imp]
+            return f"{min(v):.3g}-{max(v):.3g}"
+
+        print(f"| {engine} | {len(imp)} | {rng('speed_in')} | {rng('angle_deg')} | "
+              f"{rng('x', lambda r, _: r['x_max'] / r['radius'])} | {worst['cor_t']:.2g} | {worst['spin_out']:.2g} | "
+              f"{worst['W_diss_t']:.2g} | {worst['cor_n']:.2g} |")
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("what", choices=("reference",))
+    a = ap.parse_args(argv)
+    if a.what == "reference":
+        reference()
+
+
+if __name__ == "__main__":
+    main()
