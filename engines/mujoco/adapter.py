@@ -113,6 +113,7 @@ from engines.base import (
     PairSpec,
     check_law_curvature,
 )
+from engines.mujoco import _held
 from engines.mujoco._stepping import StepTracker
 
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times the
@@ -503,6 +504,13 @@ class MujocoAdapter(EngineAdapter):
         self.steps = 0
         #: the manager's step-averaged forces of the last step (None: no candidate)
         self.last_forces: ContactForces | None = None
+        #: pairs moving with a joint held by a servo too stiff for dt (engines.mujoco._held): their
+        #: records are flagged (outside_validity), one RuntimeWarning per servo here
+        self.stiff_servo_pairs = _held.stiff_pairs(_held.servos(model, data),
+                                                   [(p.body1, p.body2) for p in self._pairs], self.manager.dt)
+        for s in {id(s): s for s in self.stiff_servo_pairs.values()}.values():
+            names = [f"{i} {self.pair_names[i]}" for i, t in self.stiff_servo_pairs.items() if t is s]
+            warnings.warn(s.note(self.manager.dt, ", ".join(names)), RuntimeWarning, stacklevel=2)
 
     # -- set-up ----------------------------------------------------------------
     def _geom(self, name, which: str, i: int) -> int:
@@ -643,6 +651,27 @@ class MujocoAdapter(EngineAdapter):
     def __exit__(self, *exc):
         ctx, self._ctx = self._ctx, None
         return ctx.__exit__(*exc)
+
+    # -- records -----------------------------------------------------------------
+    @property
+    def records(self) -> list:
+        """Finished impacts (msf_contact.ImpactRecord), oldest first; a pair
+        moving with a servo too stiff for the step flagged (engines.mujoco._held)."""
+        return self._flag_stiff(self.manager.records)
+
+    def pop_records(self) -> list:
+        """Finished impacts since the last call, and forget them; flagged as :attr:`records`."""
+        return self._flag_stiff(self.manager.pop_records())
+
+    def _flag_stiff(self, records: list) -> list:
+        if self.stiff_servo_pairs:
+            for r in records:
+                s = self.stiff_servo_pairs.get(r.inputs.get("pair"))
+                if s is not None:
+                    note = s.note(self.manager.dt, f"{r.inputs['pair']} {self.pair_names[r.inputs['pair']]}")
+                    if note not in r.outside_validity:
+                        r.outside_validity.append(note)
+        return records
 
     # -- the hook ----------------------------------------------------------------
     def _passive(self, model, data) -> None:
