@@ -47,7 +47,9 @@ class ContactManager(CompiledPath, NumpyPath, Records):
     the engine applied the contact's last impulse). Key ``"omega1"``: body
     1's angular velocity in world axes [rad/s] (3,), gives spin_in/spin_out
     about n x t (t the incident tangential direction; rolling in the
-    direction of incidence is positive, as in the reference solver); other
+    direction of incidence is positive, as in the reference solver);
+    ``"omega1"`` and ``"omega2"`` give the bodies' rotation per step, checked
+    for the bodies :meth:`set_orientation_free` does not exempt; other
     keys are stored in ``record.inputs["body_in"]`` / ``["body_out"]``.
     """
 
@@ -106,6 +108,11 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self._coupling: tuple[np.ndarray, Callable] | None = None  # set_coupling
         self._probe: Callable[[int], dict] | None = None
         self._probe_batch: Callable[[], Callable[[int], dict]] | None = None
+        #: (P, 2) bool: the contact of the pair does not depend on the orientation of body 1 / body 2
+        #: (a sphere centred on its centre of mass, or a fixed body); the others' rotation per step is
+        #: checked against ROTATION_PER_STEP_MAX (set_orientation_free)
+        self.orientation_free = np.zeros((P, 2), bool)
+        self._rotation_warned = np.zeros(P, bool)
         self._init_state(P)
         self.records: list[ImpactRecord] = []
         self._pending: list[list] = []  # [pair, record, spin axis, steps waited]
@@ -201,6 +208,18 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             raise ValueError(f"batch = {batch!r} must be callable or None")
         self._probe = probe
         self._probe_batch = batch
+
+    def set_orientation_free(self, mask) -> None:
+        """Which bodies' orientation the pairs' contacts do not depend on:
+        mask (P, 2) bool, True for a sphere centred on its body's centre of
+        mass or a fixed body. For the others the records flag a rotation per
+        engine step |omega| dt above ROTATION_PER_STEP_MAX (read from the
+        body probe's ``omega1``/``omega2`` at the contact's start and after its
+        end; engines._contacts.state)."""
+        m = np.asarray(mask, dtype=bool)
+        if m.shape != (len(self.pairs), 2):
+            raise ValueError(f"mask has shape {m.shape}; expected ({len(self.pairs)}, 2)")
+        self.orientation_free = m.copy()
 
     def state(self, pair_index: int) -> dict | None:
         """Current state of the pair's contact, or None when not in contact."""

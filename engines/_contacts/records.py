@@ -19,8 +19,8 @@ from msf_contact.record import ImpactRecord
 
 from .. import _kernel as K
 from .state import (
-    ENERGY_GAIN_RTOL, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, PENDING_MAX_STEPS, SUBSTEPS_PER_CONTACT,
-    SUBSTEPS_PER_TANGENTIAL, _dot, _duration_estimate, _pc, _plain, _Rows, onset_speed_floor,
+    ENERGY_GAIN_RTOL, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, PENDING_MAX_STEPS, ROTATION_PER_STEP_MAX,
+    SUBSTEPS_PER_CONTACT, SUBSTEPS_PER_TANGENTIAL, _dot, _duration_estimate, _pc, _plain, _Rows, onset_speed_floor,
 )
 
 
@@ -261,8 +261,39 @@ class Records:
         self.in_island[sel] = False
         return dropped
 
+    def _rotation_note(self, p: int, rec: ImpactRecord) -> str | None:
+        """The ``outside_validity`` reason for pair p's record when a body whose
+        contact depends on its orientation (not exempt by ``orientation_free``)
+        turned more than ROTATION_PER_STEP_MAX per engine step, at the
+        contact's start or after its end (the probe's ``omega1``/``omega2``
+        [rad/s] in ``body_in``/``body_out``), else None."""
+        worst = (0.0, 0)
+        for key in ("body_in", "body_out"):
+            body = rec.inputs.get(key) or {}
+            for i in (0, 1):
+                w = body.get(f"omega{i + 1}")
+                if w is not None and not self.orientation_free[p, i]:
+                    speed = math.sqrt(sum(float(c) * float(c) for c in w))
+                    worst = max(worst, (speed, i))
+        speed, i = worst
+        if speed * self.dt <= ROTATION_PER_STEP_MAX:
+            return None
+        return (f"rotation per step: {self.pair_names[p][i]} (pair {p}) turns |omega| dt = {speed * self.dt:.3g} rad "
+                f"per engine step (|omega| = {speed:.4g} rad/s, dt = {self.dt:g} s), above pi/4: pybullet limits a "
+                f"turn per step to pi/4 and the contact sub-cycle holds the step-start contact geometry, so the "
+                f"orientation this contact depends on is not resolved (take dt <= "
+                f"{ROTATION_PER_STEP_MAX / speed:.3g} s)")
+
     def _publish(self, p: int, rec: ImpactRecord) -> None:
-        """Move a completed record to ``records`` (with its force history when kept)."""
+        """Move a completed record to ``records`` (with its force history when
+        kept), flagging a rotation per step beyond ROTATION_PER_STEP_MAX
+        (warned once per pair)."""
+        note = self._rotation_note(p, rec)
+        if note:
+            rec.outside_validity.append(note)
+            if not self._rotation_warned[p]:
+                self._rotation_warned[p] = True
+                warnings.warn(note, ValidityWarning, stacklevel=3)
         hist = self._hist.pop(p, None)
         if self.history and hist:
             t_on = float(rec.inputs.get("t_onset", 0.0))

@@ -65,6 +65,33 @@ F_RATIO_FLOOR = 0.01
 #: more than this share is flagged and warned (ContactManager records): the
 #: sub-cycle's own COR error is <= 1.3e-5 (docs/engines.md), two orders below this.
 ENERGY_GAIN_RTOL = 1e-3
+#: Largest rotation of a body per engine step, |omega| dt [rad], for which
+#: the engines resolve the orientation a contact depends on: pi/4.
+#: Both engines turn a body once per step by the exponential map of its
+#: angular velocity. Bullet's btMultiBody::stepPositionsMultiDof (pybullet)
+#: limits that turn where |omega| dt > ANGULAR_MOTION_THRESHOLD = pi/4
+#: (LinearMath/btTransformUtil.h); above it the orientation no longer
+#: follows the angular velocity (measured with pybullet 3.2.x: 100 rad/s at
+#: dt = 10 ms turns 55.6 degrees per step, not 57.3). MuJoCo's
+#: quaternion integration has no such limit, but the contact sub-cycle holds
+#: the step-start geometry (contact point, lever arms, W) over the step
+#: (LEVER_DOC: the bodies' turn inside the step is left out), so the bound
+#: is the same for both engines: a turn of pi/4 moves a contact point at
+#: lever arm r by 0.77 r within one step.
+#: Only a body whose contact depends on its orientation is checked (the
+#: adapters' ``set_orientation_free``): a sphere centred on its centre of
+#: mass touches at the same point however it turns, so the spin of a jet bead
+#: (~1e5 rad/s at dt = 1e-4 s, 10 rad per step) leaves its records valid.
+#: The contact's own frequency needs no such bound: every impact is
+#: sub-cycled (omega_x h ~ pi/SUBSTEPS_PER_CONTACT), and the only path at the
+#: engine step, the settled path of resting contacts, is backward Euler
+#: (stable at any omega dt; steel at 2 ms has omega dt ~ 30).
+ROTATION_PER_STEP_MAX = math.pi / 4
+#: A sphere counts as centred on its body's centre of mass (its contact then
+#: does not depend on the body's orientation) when the two are closer than
+#: this share of its radius: float32 round-off of pybullet's shape data; a
+#: turn then moves the contact point by less than 1e-6 R.
+CENTRED_RTOL = 1e-6
 #: Root finding on a substep: iterations and tolerance in substep fractions.
 ROOT_ITER = 60
 ROOT_TOL = 1e-13

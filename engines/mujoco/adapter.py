@@ -102,7 +102,7 @@ import mujoco
 import numpy as np
 
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
-from engines._contacts.state import lever_terms_free
+from engines._contacts.state import CENTRED_RTOL, lever_terms_free
 from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box, sphere_plane, sphere_sphere
 from engines.base import (
@@ -210,6 +210,19 @@ def _simple_free_body(model: mujoco.MjModel, b: int) -> bool:
     if np.any(model.dof_armature[a:a + 6] != 0.0):
         return False
     return not np.any(model.body_parentid[1:] == b)
+
+
+def _orientation_free(model: mujoco.MjModel, g: int, b: int, fixed: bool) -> bool:
+    """The contact of geom g does not depend on its body b's orientation: b is
+    welded to the world, or a free body whose geom g is a sphere centred on
+    its centre of mass (CENTRED_RTOL; engines._contacts.state.ROTATION_PER_STEP_MAX)."""
+    if fixed:
+        return True
+    if geom_type_name(model, g) != "sphere" or int(model.body_jntnum[b]) != 1:
+        return False
+    if int(model.jnt_type[int(model.body_jntadr[b])]) != mujoco.mjtJoint.mjJNT_FREE:
+        return False
+    return float(np.linalg.norm(model.geom_pos[g] - model.body_ipos[b])) <= CENTRED_RTOL * float(model.geom_size[g, 0])
 
 
 def _vectorisable(model: mujoco.MjModel, p: _Pair) -> bool:
@@ -477,6 +490,9 @@ class MujocoAdapter(EngineAdapter):
             self._group_of[self._fast.index] = np.arange(self._fast.index.size)
             self._no_points = np.zeros((0, 3))  # p1, p2 when there is no free group
         self.manager.set_body_probe(self._probe, batch=self._probe_batch)
+        self.manager.set_orientation_free([[_orientation_free(model, p.geom1, p.body1, p.fixed1),
+                                            _orientation_free(model, p.geom2, p.body2, p.fixed2)]
+                                           for p in self._pairs])
         self.pair_names = [(str(p.body1), str(p.body2)) for p in self.pairs]  # one per contact slot
         self.manager.pair_names = self.pair_names
         self._sensors = self._msf_sensors()
@@ -1325,7 +1341,8 @@ class MujocoAdapter(EngineAdapter):
     def _probe(self, i: int) -> dict:
         """Body-level quantities of pair i for the manager's records (at onset,
         inside the hook, and after the step that ended the contact): body 1's
-        angular velocity in world axes (spin_in/spin_out about n x t) and the
+        angular velocity in world axes (spin_in/spin_out about n x t), body
+        2's (the rotation per step of both is checked) [rad/s] and the
         relative centre-of-mass velocity [m/s]."""
         if not self._in_hook:
             self._refresh()
@@ -1334,7 +1351,7 @@ class MujocoAdapter(EngineAdapter):
     def _probe_now(self, i: int) -> dict:
         """_probe from the derived quantities as they are (no refresh)."""
         p = self._pairs[i]
-        return {"omega1": self._angular_velocity(p.body1),
+        return {"omega1": self._angular_velocity(p.body1), "omega2": self._angular_velocity(p.body2),
                 "v_com_rel": self._com_velocity(p.body1) - self._com_velocity(p.body2)}
 
     def _probe_batch(self):

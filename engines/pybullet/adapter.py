@@ -81,7 +81,7 @@ from engines import _geometry
 from engines._geometry import cross_rows
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance, effective_inverse_inertia_free
 from engines._contacts.islands import TOUCH_TOL, push_reach
-from engines._contacts.state import lever_terms_free
+from engines._contacts.state import CENTRED_RTOL, lever_terms_free
 from engines.pybullet.scenes import MAX_COORDINATE_VELOCITY
 from engines.base import STEPS_PER_CONTACT_MIN, ContactKinematics, EngineAdapter, PairSpec, check_law_curvature
 from engines.pybullet import narrow as _narrow
@@ -273,6 +273,8 @@ class PybulletAdapter(EngineAdapter):
         self._steps = 0
         self._closed = False
         self.manager.set_body_probe(self._probe)
+        self.manager.set_orientation_free([[self._orientation_free(b, s) for b, s in zip(bb, ss)]
+                                           for bb, ss in zip(self._bodies, self._shapes)])
         self.pair_names = [(self._body_name(b1), self._body_name(b2)) for b1, b2 in self._bodies]
         self.manager.pair_names = self.pair_names
         # contacts sharing a moving body are solved together (engines._islands): a free body's key
@@ -1222,9 +1224,19 @@ class PybulletAdapter(EngineAdapter):
     # -- records ----------------------------------------------------------------
     def _probe(self, i) -> dict:
         """Body-level quantities for the manager's records (its body probe):
-        body 1's angular velocity gives spin_in/spin_out about n x t."""
-        b1, _ = self._bodies[i]
-        return {"omega1": self._pose(b1).w}
+        body 1's angular velocity gives spin_in/spin_out about n x t; both
+        bodies' give their rotation per step [rad/s] (3,)."""
+        b1, b2 = self._bodies[i]
+        return {"omega1": self._pose(b1).w, "omega2": np.zeros(3) if self._fixed(b2) else self._pose(b2).w}
+
+    def _orientation_free(self, b, s: _Shape) -> bool:
+        """The contact of shape s does not depend on its body b's orientation:
+        b is fixed, or a multibody's base whose shape is a sphere centred on
+        its centre of mass (CENTRED_RTOL; engines._contacts.state.ROTATION_PER_STEP_MAX)."""
+        if self._fixed(b):
+            return True
+        return (not self._articulated(b) and s.kind == "sphere"
+                and float(np.linalg.norm(s.pos)) <= CENTRED_RTOL * float(s.size[0]))
 
     @property
     def time(self) -> float:
