@@ -146,13 +146,83 @@ def _span_fraction(v, lo: float, hi: float, log: bool) -> float:
     return float(ext / span)
 
 
+#: Alpha at or above which a curve drawn later covers an earlier one (below
+#: it the earlier curve shows through, tinted).
+COVER_ALPHA_MIN = 0.7
+
+
+def _solid(ls) -> bool:
+    return ls in ("-", "solid")
+
+
+def _no(style) -> bool:
+    """No line or no marker: matplotlib's 'None', '', ' ' or None."""
+    return style is None or (isinstance(style, str) and style.strip() in ("", "None", "none"))
+
+
+def _line_covers(a, b) -> bool:
+    """Line2D b, drawn after a over the same data, hides a: b is opaque enough
+    (COVER_ALPHA_MIN), a's line is under a line of b at least as wide, solid
+    or dashed alike, and a's markers (if any) under markers of b of the same
+    shape, no smaller, filled unless a's are hollow too."""
+    if (b.get_alpha() if b.get_alpha() is not None else 1.0) < COVER_ALPHA_MIN:
+        return False
+    if not _no(a.get_linestyle()):
+        if _no(b.get_linestyle()) or b.get_linewidth() < a.get_linewidth():
+            return False
+        if not (_solid(b.get_linestyle()) or b.get_linestyle() == a.get_linestyle()):
+            return False
+    if not _no(a.get_marker()):
+        if b.get_marker() != a.get_marker() or b.get_markersize() < a.get_markersize():
+            return False
+        if _no(b.get_markerfacecolor()) and not _no(a.get_markerfacecolor()):
+            return False
+    return True
+
+
+def _same(u, v) -> bool:
+    import numpy as np
+
+    u, v = np.asarray(u, dtype=float), np.asarray(v, dtype=float)
+    return u.shape == v.shape and u.size > 0 and bool(np.allclose(u, v, rtol=1e-12, atol=0.0, equal_nan=True))
+
+
+def _hidden_curve(ax) -> tuple[str, str] | None:
+    """(hidden, covering) labels of the first curve of ax that a later one
+    draws over entirely (issue 12: in jet_pc_hist.png the two engines'
+    histograms coincided and MuJoCo's was hidden under pybullet's): the same
+    data, and a style that covers it (:func:`_line_covers`; for stairs the
+    same edges and values under a line at least as wide). Errorbar caps
+    (markers '_' or '|' without a line) are left out; a curve seen as
+    distinct only by its colour is not distinct when the other lies on it."""
+    from matplotlib.patches import StepPatch
+
+    lines = [ln for ln in ax.get_lines() if ln.get_visible() and ln.get_transform() == ax.transData
+             and not (_no(ln.get_linestyle()) and ln.get_marker() in ("_", "|"))]
+    for i, a in enumerate(lines):
+        for b in lines[i + 1:]:
+            if _same(a.get_xdata(), b.get_xdata()) and _same(a.get_ydata(), b.get_ydata()) and _line_covers(a, b):
+                return a.get_label(), b.get_label()
+    steps = [p for p in ax.patches if isinstance(p, StepPatch) and p.get_visible()]
+    for i, a in enumerate(steps):
+        for b in steps[i + 1:]:
+            (va, ea, _), (vb, eb, _) = a.get_data(), b.get_data()
+            if (_same(va, vb) and _same(ea, eb) and b.get_linewidth() >= a.get_linewidth()
+                    and (b.get_alpha() if b.get_alpha() is not None else 1.0) >= COVER_ALPHA_MIN):
+                return a.get_label(), b.get_label()
+    return None
+
+
 def check_figure(fig, name: str) -> None:
     """Refuse a report figure that hides data or whose axes are not set by
     the data (issue 12): every point an axes draws lies inside its limits; on
     each axis the extent of what is drawn (data and filled bands, plus values
     marked with axvline / axhline) covers at least :data:`DATA_SPAN_MIN` of the axis span
-    (of its decades on a log axis); no legend inside an axes covers a point.
-    Raises ValueError naming the figure, the axes and the offending value."""
+    (of its decades on a log axis); no legend inside an axes covers a point;
+    no curve lies wholly under a later one with the same data and a covering
+    style (:func:`_hidden_curve`: give coinciding engines their own markers,
+    widths or panels). Raises ValueError naming the figure, the axes and the
+    offending value."""
     import numpy as np
 
     fig.canvas.draw()
@@ -162,6 +232,10 @@ def check_figure(fig, name: str) -> None:
         if not len(pts):
             continue
         label = f"figure {name}, axes {i} ({ax.get_title() or ax.get_ylabel()!r})"
+        hidden = _hidden_curve(ax)
+        if hidden:
+            raise ValueError(f"{label}: the curve {hidden[0]!r} lies wholly under {hidden[1]!r} (the same data, "
+                             "a covering style); give each its own marker or width, or its own panel")
         refs = _reference_values(ax)
         area = _area_points(ax)
         area = area[np.all(np.isfinite(area), axis=1)]

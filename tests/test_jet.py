@@ -3,6 +3,7 @@ the aggregates, the scenario on the runner, and bad configurations."""
 
 import gc
 import json
+from pathlib import Path
 import math
 import textwrap
 import tracemalloc
@@ -380,7 +381,7 @@ pool = 8
 
 
 @pytest.mark.mujoco
-def test_run_report_and_resume_without_duplicates(tmp_path):
+def test_run_report_and_resume_without_duplicates(tmp_path, monkeypatch):
     import pandas as pd
 
     cfg = _cfg(tmp_path, RUN_CFG)
@@ -412,3 +413,33 @@ def test_run_report_and_resume_without_duplicates(tmp_path):
         r for r in first["records"] if r["kind"] == "impact"]  # deterministic: the same impacts again
     df2 = pd.read_csv(out / "records.csv")
     assert len(df2[df2["kind"] == "impact"]) == 24
+
+    _coinciding_engines_stay_visible(out, tmp_path, monkeypatch)
+
+
+def _coinciding_engines_stay_visible(out, tmp_path, monkeypatch):
+    """Issue 12: in make demo's jet the two engines' Pc_max histograms agree
+    bin for bin and MuJoCo's was hidden under pybullet's (jet_angle.png
+    likewise). The run's summaries again as a second engine (the demo's case,
+    exactly): every figure passes check_figure, which refuses a curve lying
+    wholly under another (tests/test_robustness.py), and the histogram gives
+    each engine its own panel."""
+    from experiments._io import check_figure
+    from experiments.scenarios.jet import reporting
+    from experiments.sweep import cell_key, collect
+
+    scenario, cfg, _ = runner.load_config(out / "config.toml")
+    summary = [r for r in collect(out, {cell_key(c) for c in scenario.cells(cfg)}) if r.get("kind") == "summary"]
+    assert summary
+    saved = {}
+
+    def keep(fig, path, **kw):
+        check_figure(fig, Path(path).name)
+        saved[Path(path).name] = [[t.get_text() for t in (ax.get_legend().get_texts() if ax.get_legend() else [])]
+                                  for ax in fig.axes]
+
+    monkeypatch.setattr("experiments._io.save_figure_atomic", keep)
+    reporting.report(tmp_path / "two", summary + [dict(r, engine="pybullet") for r in summary], cfg)
+    hist = saved["jet_pc_hist.png"]
+    assert len(hist) == 2 and hist[0][0].startswith("mujoco") and hist[1][0].startswith("pybullet")
+    assert any(t.startswith("mujoco") for t in saved["jet_angle.png"][0])

@@ -273,3 +273,49 @@ def test_figure_check_refuses_axes_not_set_by_the_data():
     ax.set_xlim(5.0, 50.0)
     check_figure(fig, "h.png")
     plt.close(fig)
+
+
+def test_figure_check_refuses_a_curve_hidden_under_another():
+    """Issue 12: make demo's jet_pc_hist.png drew the two engines' identical
+    histograms in one axes and MuJoCo's lay wholly under pybullet's (and
+    jet_angle.png's 'o-' curves likewise): refused, by name. Told apart by
+    marker and width (the jet's styles), or in panels: accepted."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from experiments._io import check_figure
+    from experiments.scenarios.jet.reporting import _engine_style
+
+    counts, edges = [0, 3, 5, 2, 0], [5.0, 6.0, 7.0, 8.0, 9.0, 10.0]
+    fig, ax = plt.subplots()
+    ax.stairs(counts, edges, color="C0", label="mujoco")
+    ax.stairs(counts, edges, color="C1", label="pybullet")
+    with pytest.raises(ValueError, match=r"figure h.png, axes 0.*'mujoco' lies wholly under 'pybullet'"):
+        check_figure(fig, "h.png")
+    plt.close(fig)
+    fig, axes = plt.subplots(2, 1, sharex=True)  # one panel per engine
+    for ax, name in zip(axes, ("mujoco", "pybullet")):
+        ax.stairs(counts, edges, label=name)
+    check_figure(fig, "h.png")
+    plt.close(fig)
+
+    x, y = [27.5, 32.5, 37.5], [0.69, 0.68, 0.67]
+    fig, ax = plt.subplots()
+    ax.plot(x, y, "o-", color="C0", ms=4, label="mujoco: cor_n")
+    ax.plot(x, y, "o-", color="C1", ms=4, label="pybullet: cor_n")
+    with pytest.raises(ValueError, match="'mujoco: cor_n' lies wholly under 'pybullet: cor_n'"):
+        check_figure(fig, "a.png")
+    plt.close(fig)
+    fig, ax = plt.subplots()
+    ax.plot(x, y, "-", color="C0", label="mujoco: cor_n", **_engine_style(0))
+    ax.plot(x, y, "-", color="C1", label="pybullet: cor_n", **_engine_style(1))
+    check_figure(fig, "a.png")
+    # a thinner line of the same style on top does not hide a wider one; a dashed one not a solid one
+    ax.plot(x, [0.6, 0.61, 0.62], "-", lw=3)
+    ax.plot(x, [0.6, 0.61, 0.62], "-", lw=1)
+    ax.plot(x, [0.64, 0.65, 0.66], "-", lw=1)
+    ax.plot(x, [0.64, 0.65, 0.66], "--", lw=1)
+    check_figure(fig, "a.png")
+    plt.close(fig)

@@ -254,7 +254,7 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
         # one panel per engine, each over the reference solver's curves: engines that agree
         # (MuJoCo and pybullet draw the same staircase) no longer hide each other
         others = sorted({r["cell.engine"] for r in curves} - {"reference"}) or ["reference"]
-        fig, axes = plt.subplots(1, len(others), figsize=(5.5 * len(others) + 3.0, 4.6), sharey=True,
+        fig, axes = plt.subplots(1, len(others), figsize=(5.5 * len(others) + 3.6, 4.6), sharey=True,
                                  squeeze=False)
         speeds = sorted({r["cell.speed"] for r in curves})
         shade = {v: f"C{i}" for i, v in enumerate(speeds)}
@@ -263,18 +263,23 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
                 if r["cell.engine"] not in ("reference", engine):
                     continue
                 c = r["inputs"]["curves"]
-                label = f"{r['cell.engine']} {r['cell.speed']:g} m/s, {r['cell.angle']:g} deg"
+                # the legend (beside the last panel) serves every panel: the engine is in each panel's title
+                case = f"{r['cell.speed']:g} m/s, {r['cell.angle']:g} deg"
                 t_ms = [t * 1e3 for t in c["t"]]
                 if c.get("kind") == "step-averaged":  # an engine: the force it applied over each step
                     ax.step(t_ms + [t_ms[-1] + c["dt"] * 1e3], c["F_n"] + [c["F_n"][-1]], where="post", lw=1.2,
-                            ls="--", marker="o", ms=3, color=shade[r["cell.speed"]], label=label + " (per step)")
+                            ls="--", marker="o", ms=3, color=shade[r["cell.speed"]],
+                            label=f"{case}: engine of the panel, per step")
                 else:
-                    ax.plot(t_ms, c["F_n"], lw=2, color=shade[r["cell.speed"]], alpha=0.5, label=label)
+                    ax.plot(t_ms, c["F_n"], lw=2, color=shade[r["cell.speed"]], alpha=0.5,
+                            label=f"{case}: reference solver")
             ax.set_title(f"{engine} against the reference solver", fontsize=9)
             ax.set_xlabel("time since onset [ms]")
             ax.grid(alpha=0.3)
         axes[0][0].set_ylabel("normal force F_n [N]")
-        axes[0][-1].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+        handles = {h.get_label(): h for ax in axes[0] for h in ax.get_lines() if not h.get_label().startswith("_")}
+        order = sorted(handles, key=lambda k: (float(k.split(" m/s")[0]), "reference" not in k))
+        axes[0][-1].legend([handles[k] for k in order], order, fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
         fig.suptitle("Normal force. An engine's staircase is the mean force it applied over each step: it starts "
                      "at the step that holds the onset (before t = 0) and, for a contact of a few steps, stays "
                      "below the peak", fontsize=8)

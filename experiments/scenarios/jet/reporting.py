@@ -17,6 +17,16 @@ from .spec import SPEED_TRUNCATION_SD, JetSpec
 # --------------------------------------------------------------------------
 # Report
 # --------------------------------------------------------------------------
+def _engine_style(j: int) -> dict:
+    """Marker and width of the j-th engine's curves in a figure where the
+    engines may coincide: the first wide with large hollow markers, the
+    others thinner with smaller filled markers of their own shape on top."""
+    marks = ("o", "x", "+", "^")
+    if j == 0:
+        return {"marker": marks[0], "ms": 8, "mfc": "none", "lw": 2.6}
+    return {"marker": marks[j % len(marks)], "ms": 5, "lw": 1.0}
+
+
 def _merged(rows) -> dict[str, tuple[JetAggregates, dict]]:
     out: dict[str, tuple[JetAggregates, dict]] = {}
     for r in sorted((r for r in rows if r.get("kind") == "summary"), key=lambda r: (r["engine"], r["chunk"])):
@@ -170,19 +180,22 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     spans = np.concatenate([s for s in spans if s.size]) if any(s.size for s in spans) else np.array([0.5, 90.0])
     a_lo, a_hi = max(float(spans.min()) - 5.0, 0.0), min(float(spans.max()) + 5.0, 90.0)
     fa = np.linspace(max(a_lo, 0.5), a_hi, 180)
-    for e in engines:
+    # the engines often coincide (same law, same sub-cycle): each engine its own marker and width, the
+    # first drawn wide with hollow markers, the next thin with small filled ones on top (not hidden: check_figure)
+    for j, e in enumerate(engines):
         b = ba[e]
+        st = _engine_style(j)
         m = b["n"] > 0
-        axes[0].errorbar(b["centre"][m], b["cor_n"][m], yerr=b["cor_n_sd"][m], fmt="o-", color=colors[e], ms=4,
-                         capsize=2, label=f"{e}: cor_n (mean, sd)")
+        axes[0].errorbar(b["centre"][m], b["cor_n"][m], yerr=b["cor_n_sd"][m], fmt="-", color=colors[e], capsize=2,
+                         label=f"{e}: cor_n (mean, sd)", **st)
         mt = m & np.isfinite(b["cor_t"])
-        axes[0].plot(b["centre"][mt], b["cor_t"][mt], "s--", color=colors[e], ms=4, label=f"{e}: cor_t (mean)")
+        axes[0].plot(b["centre"][mt], b["cor_t"][mt], "--", color=colors[e], label=f"{e}: cor_t (mean)", **st)
         frac = b["fraction"][m]
-        axes[1].plot(b["centre"][m], frac / np.nanmax(frac), "o-", color=colors[e], ms=4,
-                     label=f"{e}: W/E_in (max {np.nanmax(frac):.3f})")
+        axes[1].plot(b["centre"][m], frac / np.nanmax(frac), "-", color=colors[e],
+                     label=f"{e}: W/E_in (max {np.nanmax(frac):.3f})", **st)
         Wm = b["W"][m]
-        axes[1].plot(b["centre"][m], Wm / np.nanmax(Wm), "^:", color=colors[e], ms=4,
-                     label=f"{e}: W per impact (max {np.nanmax(Wm) * 1e6:.3g} uJ)")
+        axes[1].plot(b["centre"][m], Wm / np.nanmax(Wm), ":", color=colors[e],
+                     label=f"{e}: W per impact (max {np.nanmax(Wm) * 1e6:.3g} uJ)", **st)
     axes[1].plot(fa, finnie(fa), "k-", lw=1.5, label="Finnie (1960) f(a)/f_max")
     ref = reference_by_angle(spec)
     if ref is not None:
@@ -203,24 +216,37 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
     save_figure_atomic(fig, out / "figures" / "jet_angle.png", dpi=110)
     plt.close(fig)
     figs.append("jet_angle.png")
-    fig, ax = plt.subplots(figsize=(10, 4.2))
-    filled = []  # the axis spans the filled bins and the coating strength, not the histogram's whole range
+    # one panel per engine (their histograms often coincide bin for bin: one curve would hide the other),
+    # x from the filled bins and the coating strength, not the histogram's whole log grid
+    fig, axes = plt.subplots(len(engines), 1, figsize=(10, 1.2 + 2.4 * len(engines)), sharex=True, sharey=True,
+                             squeeze=False)
+    filled = [pl.strength / 1e6]
     for e in engines:
         a = merged[e][0]
-        ax.stairs(a.pc_counts[1:-1], a.pc_edges / 1e6, color=colors[e],
-                  label=f"{e}: {a.n_above_strength / max(a.n, 1):.1%} above strength")
         nz = np.flatnonzero(np.asarray(a.pc_counts[1:-1]) > 0)
         if nz.size:
             filled += [a.pc_edges[nz[0]] / 1e6, a.pc_edges[nz[-1] + 1] / 1e6]
-    ax.axvline(pl.strength / 1e6, color="k", ls="--", label=f"coating strength {pl.strength / 1e6:g} MPa")
-    ax.set_xscale("log")
-    if filled:
-        lo, hi = min(filled + [pl.strength / 1e6]), max(filled + [pl.strength / 1e6])
-        ax.set_xlim(lo / 1.3, hi * 1.3)
+    counts = [np.asarray(merged[e][0].pc_counts) for e in engines]
+    for ax, e in zip(axes[:, 0], engines):
+        a = merged[e][0]
+        ax.stairs(a.pc_counts[1:-1], a.pc_edges / 1e6, color=colors[e], lw=1.5,
+                  label=f"{e}: {a.n} impacts, {a.n_above_strength / max(a.n, 1):.1%} above strength")
+        ax.axvline(pl.strength / 1e6, color="k", ls="--", label=f"coating strength {pl.strength / 1e6:g} MPa")
+        ax.set_xscale("log")
+        ax.set_ylabel("impacts per bin")
+        ax.set_title(e, fontsize=9, loc="left")
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    if len(engines) > 1 and all(c.shape == counts[0].shape for c in counts):
+        n_bins = int(np.count_nonzero(np.any([c != counts[0] for c in counts], axis=0)))
+        fig.suptitle(f"Pc_max histograms: the engines' counts differ in {n_bins} of the {counts[0].size - 2} bins "
+                     "and 2 out-of-range bins", fontsize=9)
+    ax = axes[-1, 0]
+    ax.set_xlim(min(filled) / 1.3, max(filled) * 1.3)
+    fmt = matplotlib.ticker.FuncFormatter(lambda v, _: f"{v:g}")  # plain MPa numbers on the log axis
+    ax.xaxis.set_major_formatter(fmt)
+    ax.xaxis.set_minor_formatter(fmt)
     ax.set_xlabel("peak contact pressure Pc_max (20) [MPa]")
-    ax.set_ylabel("impacts per bin")
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=8, loc="upper left", bbox_to_anchor=(1.01, 1.0))
     fig.tight_layout()
     save_figure_atomic(fig, out / "figures" / "jet_pc_hist.png", dpi=110)
     plt.close(fig)
