@@ -115,3 +115,17 @@ def test_bad_config_named(tmp_path):
     cfg.write_text('scenario = "paddle"\n[impact]\nspeed = 3.0\n')
     with pytest.raises(ConfigError, match=r"\[impact.speed\] is set by the paddle scenario"):
         load_config(cfg)
+
+
+def test_a_ball_resting_on_the_face_is_no_rebound():
+    """Issue 12: a driven paddle at u = 0 under pybullet's default
+    restitution 0 leaves the ball at v_z ~ 1e-5 m/s (0/4 phases carried); the
+    report printed "-100.00 %" and a direction of "+90.00" degrees for it
+    (the angle of a vanishing vector). Below REBOUND_COR_MIN of the closing
+    speed it is "no rebound"; MuJoCo's default contact (relative COR ~0.12,
+    the lowest real rebound here) still counts."""
+    resting = {"vz": 1e-5, "vx": 1e-5, "cor_rel": 1e-5, "carried": 0}
+    assert not P._rebounded(resting, 4)
+    low = {"vz": 0.12, "vx": 0.0, "cor_rel": 0.12, "carried": 0}
+    assert P._rebounded(low, 4)
+    assert not P._rebounded(dict(low, carried=4), 4)
