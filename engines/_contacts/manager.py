@@ -19,6 +19,7 @@ from ..contract import STEPS_PER_CONTACT_MIN, ContactForces, ContactKinematics, 
 from .compiled import CompiledPath, kernel_law
 from .records import Records
 from .reference import NumpyPath
+from .balance import IslandBalance
 from .islands import islands, step_island
 from .state import (
     L_G0, L_ON, L_W01, L_W11, L_XREF, NL, NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES,
@@ -106,6 +107,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self._kg_of_pair = np.array([kidx.get(g, -1) for g in self._group_of], dtype=np.int64)
         self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
         self._coupling: tuple[np.ndarray, Callable] | None = None  # set_coupling
+        self._balance: IslandBalance | None = None  # set_energy_probe
         self._probe: Callable[[int], dict] | None = None
         self._probe_batch: Callable[[], Callable[[int], dict]] | None = None
         #: (P, 2) bool: the contact of the pair does not depend on the orientation of body 1 / body 2
@@ -161,6 +163,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         #: solved in an island of several contacts in the last step (P,): the adapters keep such a
         #: pair's force out of the held forces of a_ext (the island couples it explicitly)
         self.in_island = np.zeros(P, bool)
+        self._gain_note: list[str | None] = [None] * P  # an island energy gain seen during the pair's contact
         self._island_contact = np.zeros(P, bool)  # the pair's current contact was in an island at some step
         self._held_force = np.zeros((P, 3))  #: the step-averaged forces held into the next step [N] (P, 3)
         self.J = z3.copy()  #: timing-correction impulse applied in the last step, removed in the next [N s] (P, 3)
@@ -244,6 +247,8 @@ class ContactManager(CompiledPath, NumpyPath, Records):
     def step(self, kin: ContactKinematics) -> ContactForces:
         """Integrate the candidate contacts over one engine step; return the
         step-averaged forces on body 1 at the contact points."""
+        if self._balance is not None:  # the islands of the last step, now that the engine applied it
+            self._balance.close(self, float(kin.t) - self.dt)
         self._finish_pending(at_step_start=True)
         pair = np.asarray(kin.pair, dtype=int).reshape(-1)
         k = pair.shape[0]
@@ -382,6 +387,35 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             raise ValueError(f"blocks = {blocks!r} must be callable or None")
         self._coupling = (keys, blocks)
 
+    def set_energy_probe(self, probe: Callable | None) -> None:
+        """Check every island's energy over each step (engines._contacts.balance):
+        probe(keys (b,) int) -> (T, U, q, m) (b,) each: kinetic [J] and gravitational
+        potential [J] energy of the bodies with the manager's timing corrections
+        taken out of their velocities, gravity's power m g . v [W] and the mass
+        [kg]; NaN for a body it cannot account for. None switches the check off."""
+        if probe is not None and not callable(probe):
+            raise ValueError(f"probe = {probe!r} must be callable or None")
+        self._balance = None if probe is None else IslandBalance(probe)
+
+    @property
+    def island_energy_gains(self) -> list:
+        """Islands found with an energy gain: (t [s], pairs, gain [J], allowed [J])
+        each (engines._contacts.balance; empty without an energy probe)."""
+        return [] if self._balance is None else list(self._balance.gains)
+
+    def flag_contact(self, p: int, note: str, t: float) -> None:
+        """Put ``note`` in the outside_validity of pair p's contact that was in
+        progress at time t [s]: the one still active, or its record if it ended
+        since."""
+        if self.active[p]:
+            self._gain_note[p] = note
+            return
+        for rec in [e[1] for e in self._pending] + self.records[::-1]:
+            if rec.inputs.get("pair") == p and rec.inputs.get("t_end", -np.inf) >= t:
+                if note not in rec.outside_validity:
+                    rec.outside_validity.append(note)
+                return
+
     def _island_rows(self, pair, t0, n, v, W):
         """Island label per row for the rows in islands of two or more (others -1), or None."""
         keys = self._coupling[0][pair]
@@ -451,6 +485,9 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             info["island_rows"] += int(r.size)
             self.in_island[pp] = True
             self._island_contact[pp] = True  # contacts that begin in it: Records._begin
+            if self._balance is not None:
+                bk = np.unique(keys[keys >= 0])
+                self._balance.open(self, pp, bk, IslandBalance.stored(self, pp))
             P = step_island(self, pp, x[r], n[r], v[r], vc[r], W[r], Wc[r], a_r, t0, info, cp, cq, Wpq, Wcpq,
                             self._rest_rows[r])
             force[r] = P / self.dt

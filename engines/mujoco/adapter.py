@@ -516,6 +516,13 @@ class MujocoAdapter(EngineAdapter):
         self._keys = keys
         self._push = np.full(P, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
         self.manager.set_coupling(keys, self._coupling_blocks)
+        # islands' energy balance (engines._contacts.balance): free bodies only (a tree of one body on a
+        # free joint); a link's drives and joint springs do work the probe does not see
+        one = np.bincount(model.body_rootid, minlength=model.nbody) == 1
+        self._free_body = np.array([bool(one[b]) and model.body_jntnum[b] == 1
+                                    and model.jnt_type[model.body_jntadr[b]] == mujoco.mjtJoint.mjJNT_FREE
+                                    for b in range(model.nbody)])
+        self.manager.set_energy_probe(self._energy_probe)
         #: number of engine steps run through :meth:`step`
         self.steps = 0
         #: the manager's step-averaged forces of the last step (None: no candidate)
@@ -1227,6 +1234,38 @@ class MujocoAdapter(EngineAdapter):
     def _keep_points(self, points: dict) -> None:
         for i, (p1, p2, _J) in points.items():
             self._p1[i], self._p2[i] = p1, p2
+
+    def _energy_probe(self, keys):
+        """Kinetic and potential energy [J], gravity's power m g . v [W] and mass [kg] (b,) each of
+        the bodies ``keys`` (root body ids), the manager's timing corrections J taken out
+        of their velocities (+J at body 1's point, -J at body 2's, as applied); NaN
+        for a body that is not a free body (engines._contacts.balance)."""
+        m, d, mgr = self.model, self.data, self.manager
+        b = np.asarray(keys, dtype=np.int64)
+        g = np.array(m.opt.gravity, dtype=float)
+        if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY:
+            g = np.zeros(3)
+        mass = m.body_mass[b]
+        v = d.cvel[b, 3:].copy()  # a single free body: the velocity of its centre of mass, world axes
+        w = d.cvel[b, :3].copy()
+        R = d.ximat[b].reshape(-1, 3, 3)
+        I = m.body_inertia[b]
+        where = {int(k): i for i, k in enumerate(b)}
+        for p in np.flatnonzero(np.any(mgr.J != 0.0, axis=1)):
+            J = mgr.J[p]
+            for side, sgn, pt in ((0, 1.0, self._p1[p]), (1, -1.0, self._p2[p])):
+                i = where.get(int(self._keys[p, side]), -1)
+                if i < 0:
+                    continue
+                v[i] -= sgn * J / mass[i]
+                L = np.cross(pt - d.xipos[b[i]], sgn * J)  # angular impulse about the centre of mass
+                w[i] -= R[i] @ ((R[i].T @ L) / I[i])
+        wl = np.einsum("kji,kj->ki", R, w)  # body axes
+        T = 0.5 * mass * np.einsum("ki,ki->k", v, v) + 0.5 * np.einsum("ki,ki->k", wl * I, wl)
+        U = -mass * (d.xipos[b] @ g)
+        q = mass * (v @ g)
+        bad = ~self._free_body[b]
+        return np.where(bad, np.nan, T), np.where(bad, np.nan, U), np.where(bad, np.nan, q), mass
 
     def _coupling_blocks(self, pp, pq):
         """The manager's coupling blocks (ContactManager.set_coupling): W_pq =

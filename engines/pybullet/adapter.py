@@ -286,6 +286,7 @@ class PybulletAdapter(EngineAdapter):
         self._push = np.full(n, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
         self._cur_bodies: _Bodies | None = None
         self.manager.set_coupling(self._keys, self._coupling_blocks)
+        self.manager.set_energy_probe(self._energy_probe)  # islands' energy balance (engines._contacts.balance)
         # the free bodies' centres of mass at the last step start (B, 3): pybullet integrates
         # positions with the new velocity, com_k = com_{k-1} + dt v_k to round-off (1e-17 m
         # measured), so anything else is a step taken without the adapter or a body placed
@@ -1066,6 +1067,38 @@ class PybulletAdapter(EngineAdapter):
                 dw = R @ (self._b_inv_I[j] * (R.T @ tq)) * self._dt
                 dv += sign * np.cross(dw, self._pt[i] - bodies.com[j])
             self._last_dv[i] += dv
+
+    def _energy_probe(self, keys):
+        """Kinetic and potential energy [J], gravity's power m g . v [W] and mass [kg] (b,) each of
+        the free bodies ``keys`` (slots), the manager's timing corrections J taken out
+        of their velocities (+J on body 1, -J on body 2 at the pair's point); NaN for a
+        multibody's links (engines._contacts.balance)."""
+        bodies, mgr = self._cur_bodies, self.manager
+        k = np.asarray(keys, dtype=np.int64)
+        B = len(self._body_list)
+        link = k >= B
+        j = np.where(link, 0, k)
+        g = self._gravity()
+        inv_m = self._b_inv_m[j]
+        mass = np.where(inv_m > 0, 1.0 / np.where(inv_m > 0, inv_m, 1.0), 0.0)
+        v, w = bodies.v[j].copy(), bodies.w[j].copy()
+        R = bodies.rot[j]
+        where = {int(kk): i for i, kk in enumerate(k)}
+        for p in np.flatnonzero(np.any(mgr.J != 0.0, axis=1)):
+            for side, sgn in ((0, 1.0), (1, -1.0)):
+                i = where.get(int(self._keys[p, side]), -1)
+                if i < 0 or link[i]:
+                    continue
+                Jb = sgn * mgr.J[p]
+                v[i] -= Jb * inv_m[i]
+                L = np.cross(self._pt[p] - bodies.com[j[i]], Jb)
+                w[i] -= R[i] @ (self._b_inv_I[j[i]] * (R[i].T @ L))
+        wl = np.einsum("kji,kj->ki", R, w)  # principal axes
+        I = np.where(self._b_inv_I[j] > 0, 1.0 / np.where(self._b_inv_I[j] > 0, self._b_inv_I[j], 1.0), 0.0)
+        T = 0.5 * mass * np.einsum("ki,ki->k", v, v) + 0.5 * np.einsum("ki,ki->k", wl * I, wl)
+        U = -mass * (bodies.com[j] @ g)
+        q = mass * (v @ g)
+        return np.where(link, np.nan, T), np.where(link, np.nan, U), np.where(link, np.nan, q), mass
 
     def _coupling_blocks(self, pp, pq):
         """The manager's coupling blocks (ContactManager.set_coupling) for free
