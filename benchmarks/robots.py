@@ -65,17 +65,21 @@ def measure(name: str, steps: int) -> dict:
         lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
         ctx = installed(adapter) if adapter is not None else contextlib.nullcontext()
         with ctx:
-            t = time.perf_counter()
-            for _ in range(steps):
+            wall = np.empty(steps)
+            for k in range(steps):
                 data.ctrl[:] = rng.uniform(lo, hi)
+                t = time.perf_counter()
                 mujoco.mj_step(model, data)
-            out[f"{mode}_step_s"] = (time.perf_counter() - t) / steps
+                wall[k] = time.perf_counter() - t
+            out[f"{mode}_step_s"] = float(np.mean(wall))
+            out[f"{mode}_step_median_s"] = float(np.median(wall))
             out[f"{mode}_base_height_m"] = float(data.qpos[2])
             data.ctrl[:] = 0.0
             E = []
             for _ in range(steps):
                 mujoco.mj_step(model, data)
-                E.append(mechanical_energy(model, data))
+                qvel = data.qvel if adapter is None else data.qvel - adapter.velocity_offset()
+                E.append(mechanical_energy(model, data, qvel))
         E = np.array(E)
         out[f"{mode}_rest_energy_J"] = [float(E[0]), float(E[-1])]
         out[f"{mode}_rest_energy_rise_J"] = float(np.max(E[steps // 5:] - E[steps // 5]))
@@ -83,6 +87,8 @@ def measure(name: str, steps: int) -> dict:
             out["msf_records"] = len(adapter.records)
             out["msf_managed_contacts"] = len(adapter.pairs)
     out["ratio_msf_over_builtin"] = out["msf_step_s"] / out["builtin_step_s"]
+    out["ratio_median_msf_over_builtin"] = out["msf_step_median_s"] / out["builtin_step_median_s"]
+    out["load_avg_1min"] = os.getloadavg()[0]
     return out
 
 
@@ -98,7 +104,8 @@ def run(quick: bool = False) -> list[dict]:
             out.append({"name": "robots", "engine": "mujoco", "model": name, "failed": True,
                         "reason": f"{type(exc).__name__}: {exc}"[:300]})
             continue
-        log(f"  msf {r['msf_step_s'] * 1e3:.2f} ms, builtin {r['builtin_step_s'] * 1e3:.3f} ms per step; "
+        log(f"  msf {r['msf_step_median_s'] * 1e3:.2f} ms, builtin {r['builtin_step_median_s'] * 1e3:.3f} ms per step "
+            f"(medians; ratio {r['ratio_median_msf_over_builtin']:.0f}, load {r['load_avg_1min']:.1f}); "
             f"rest energy rise msf {r['msf_rest_energy_rise_J']:.3g} J")
         out.append(r)
     return out

@@ -6,6 +6,7 @@ The algorithm: the package docstring (:mod:`engines._contacts`)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any, Callable
 
@@ -19,7 +20,6 @@ from ..contract import STEPS_PER_CONTACT_MIN, ContactForces, ContactKinematics, 
 from .compiled import CompiledPath, kernel_law
 from .records import Records
 from .reference import NumpyPath
-from .balance import IslandBalance
 from .islands import islands, step_island
 from .state import (
     L_G0, L_ON, L_W01, L_W11, L_XREF, NL, NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES,
@@ -104,10 +104,11 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self._kcodes = np.array([self._kernel_law[g][0] for g in kgs], dtype=np.int64)
         self._kLC = np.array([self._kernel_law[g][1] for g in kgs], dtype=float).reshape(len(kgs), K.NLC)
         kidx = {g: j for j, g in enumerate(kgs)}
+        self._kidx = kidx  # law group -> its row in _kcodes/_kLC
+        self._slot_pos = {(i, int(self._group_of[i])): int(self._pos[i]) for i in range(P)}  # set_law
         self._kg_of_pair = np.array([kidx.get(g, -1) for g in self._group_of], dtype=np.int64)
         self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
         self._coupling: tuple[np.ndarray, Callable] | None = None  # set_coupling
-        self._balance: IslandBalance | None = None  # set_energy_probe
         self._probe: Callable[[int], dict] | None = None
         self._probe_batch: Callable[[], Callable[[int], dict]] | None = None
         #: (P, 2) bool: the contact of the pair does not depend on the orientation of body 1 / body 2
@@ -163,7 +164,6 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         #: solved in an island of several contacts in the last step (P,): the adapters keep such a
         #: pair's force out of the held forces of a_ext (the island couples it explicitly)
         self.in_island = np.zeros(P, bool)
-        self._gain_note: list[str | None] = [None] * P  # an island energy gain seen during the pair's contact
         self._island_contact = np.zeros(P, bool)  # the pair's current contact was in an island at some step
         self._held_force = np.zeros((P, 3))  #: the step-averaged forces held into the next step [N] (P, 3)
         self.J = z3.copy()  #: timing-correction impulse applied in the last step, removed in the next [N s] (P, 3)
@@ -247,8 +247,6 @@ class ContactManager(CompiledPath, NumpyPath, Records):
     def step(self, kin: ContactKinematics) -> ContactForces:
         """Integrate the candidate contacts over one engine step; return the
         step-averaged forces on body 1 at the contact points."""
-        if self._balance is not None:  # the islands of the last step, now that the engine applied it
-            self._balance.close(self, float(kin.t) - self.dt)
         self._finish_pending(at_step_start=True)
         pair = np.asarray(kin.pair, dtype=int).reshape(-1)
         k = pair.shape[0]
@@ -325,6 +323,46 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             self._held_force[pair[held]] = out.force[held]
         return out
 
+    def set_law(self, pair_index: int, law: ForceLaw) -> None:
+        """Give pair ``pair_index`` the law ``law`` from its next onset on (a
+        curvature per contact point: an adapter whose narrow phase finds the
+        point where the pair's law was not built for, issue 13). Only between
+        contacts: a pair in contact keeps its law (ValueError); a finished
+        contact's record was made with its own law. The pair joins ``law``'s
+        group (created on first use, compiled when the kernel knows it)."""
+        p = int(pair_index)
+        if not 0 <= p < len(self.pairs):
+            raise ValueError(f"pair_index = {pair_index!r} is outside [0, {len(self.pairs) - 1}]")
+        if not isinstance(law, ForceLaw):
+            raise ValueError(f"law = {law!r} is not a msf_contact ForceLaw")
+        g = id(law)
+        if self._group_of[p] == g:
+            return
+        if self.active[p]:
+            raise ValueError(f"pair {p} is in contact: its law changes only between contacts")
+        if g not in self._groups:
+            self._groups[g] = law
+            self._onset[g] = {}
+            self._group_size[g] = 0
+            self._kernel_law[g] = kernel_law(law) if self.compiled else None
+            if self._kernel_law[g] is not None:
+                code, lc = self._kernel_law[g]
+                self._kcodes = np.append(self._kcodes, np.int64(code))
+                self._kLC = np.vstack([self._kLC, np.asarray(lc, dtype=float).reshape(1, K.NLC)])
+                self._kidx[g] = self._kcodes.size - 1
+        pos = self._slot_pos.get((p, g))
+        if pos is None:  # a new place in the group's onset arrays for this pair
+            pos = self._slot_pos[(p, g)] = self._group_size[g]
+            self._group_size[g] = pos + 1
+            store = self._onset[g]
+            for key in store:
+                store[key] = np.append(store[key], np.nan)
+        self._group_of[p] = g
+        self._pos[p] = pos
+        self._kg_of_pair[p] = self._kidx.get(g, -1)
+        self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
+        self.pairs[p] = dataclasses.replace(self.pairs[p], law=law)
+
     def held(self, pair, t_next: float) -> np.ndarray:
         """Which of the pairs ``pair`` (k,) hold their force into the next step
         (starting at ``t_next``), for the adapters' a_ext: in contact at the end
@@ -386,35 +424,6 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         if not callable(blocks):
             raise ValueError(f"blocks = {blocks!r} must be callable or None")
         self._coupling = (keys, blocks)
-
-    def set_energy_probe(self, probe: Callable | None) -> None:
-        """Check every island's energy over each step (engines._contacts.balance):
-        probe(keys (b,) int) -> (T, U, q, m) (b,) each: kinetic [J] and gravitational
-        potential [J] energy of the bodies with the manager's timing corrections
-        taken out of their velocities, gravity's power m g . v [W] and the mass
-        [kg]; NaN for a body it cannot account for. None switches the check off."""
-        if probe is not None and not callable(probe):
-            raise ValueError(f"probe = {probe!r} must be callable or None")
-        self._balance = None if probe is None else IslandBalance(probe)
-
-    @property
-    def island_energy_gains(self) -> list:
-        """Islands found with an energy gain: (t [s], pairs, gain [J], allowed [J])
-        each (engines._contacts.balance; empty without an energy probe)."""
-        return [] if self._balance is None else list(self._balance.gains)
-
-    def flag_contact(self, p: int, note: str, t: float) -> None:
-        """Put ``note`` in the outside_validity of pair p's contact that was in
-        progress at time t [s]: the one still active, or its record if it ended
-        since."""
-        if self.active[p]:
-            self._gain_note[p] = note
-            return
-        for rec in [e[1] for e in self._pending] + self.records[::-1]:
-            if rec.inputs.get("pair") == p and rec.inputs.get("t_end", -np.inf) >= t:
-                if note not in rec.outside_validity:
-                    rec.outside_validity.append(note)
-                return
 
     def _island_rows(self, pair, t0, n, v, W):
         """Island label per row for the rows in islands of two or more (others -1), or None."""
@@ -485,9 +494,6 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             info["island_rows"] += int(r.size)
             self.in_island[pp] = True
             self._island_contact[pp] = True  # contacts that begin in it: Records._begin
-            if self._balance is not None:
-                bk = np.unique(keys[keys >= 0])
-                self._balance.open(self, pp, bk, IslandBalance.stored(self, pp))
             P = step_island(self, pp, x[r], n[r], v[r], vc[r], W[r], Wc[r], a_r, t0, info, cp, cq, Wpq, Wcpq,
                             self._rest_rows[r])
             force[r] = P / self.dt

@@ -100,8 +100,6 @@ class Records:
         self.W_visc_comp[pp] = 0.0
         self.outside[pp] = False
         y[new, _S] = 0.0
-        for q in pp:
-            self._gain_note[int(q)] = None
         y[new, _WEL] = y[new, _WVI] = y[new, _Q] = y[new, _WT] = 0.0
         if self._probe is not None:
             for q in pp:
@@ -142,8 +140,6 @@ class Records:
         strain = small_strain_note(x_m, law.geom.R)
         if strain:
             outside.append(strain)
-        if self._gain_note[p]:
-            outside.append(self._gain_note[p])
         gain = self._energy_gain(p, vin, v_out, lu, yl[_WT])
         if gain:
             outside.append(gain)

@@ -446,7 +446,10 @@ class MujocoAdapter(EngineAdapter):
             self._narrow = NarrowPhase(model, [(g1, g2) for g1, g2, *_ in self._narrow_pairs])
             self._narrow_key = None
             self._narrow_found: list = []
-            self._narrow_checked = np.zeros(len(self._pairs), bool)
+            from engines._narrow import LawBank
+
+            #: a law per contact curvature, built from the PairSpec's (engines._narrow.LawBank, _narrow_law)
+            self.laws = LawBank()
         super().__init__(expanded)
         nv = model.nv
         self._jac = np.zeros((3, nv))
@@ -516,13 +519,6 @@ class MujocoAdapter(EngineAdapter):
         self._keys = keys
         self._push = np.full(P, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
         self.manager.set_coupling(keys, self._coupling_blocks)
-        # islands' energy balance (engines._contacts.balance): free bodies only (a tree of one body on a
-        # free joint); a link's drives and joint springs do work the probe does not see
-        one = np.bincount(model.body_rootid, minlength=model.nbody) == 1
-        self._free_body = np.array([bool(one[b]) and model.body_jntnum[b] == 1
-                                    and model.jnt_type[model.body_jntadr[b]] == mujoco.mjtJoint.mjJNT_FREE
-                                    for b in range(model.nbody)])
-        self.manager.set_energy_probe(self._energy_probe)
         #: number of engine steps run through :meth:`step`
         self.steps = 0
         #: the manager's step-averaged forces of the last step (None: no candidate)
@@ -944,16 +940,14 @@ class MujocoAdapter(EngineAdapter):
         return out
 
     def _narrow_detection(self, p: _Pair) -> Detection:
-        """Detection of narrow pair p's slot from MuJoCo's narrow phase; at a
-        contact's onset the law's curvature is checked against the contact's
-        (engines._narrow.contact_curvature); a slot MuJoCo no longer lists is
-        a gap beyond the detection margin."""
-        from engines._narrow import check_contact_law
+        """Detection of narrow pair p's slot from MuJoCo's narrow phase; until
+        the contact's onset the slot's law follows the curvature at its point
+        (:meth:`_narrow_law`); a slot MuJoCo no longer lists is a gap beyond
+        the detection margin."""
 
         d = self.data
         found = self._narrow_points()[p.narrow][p.slot]
         if found is None:  # beyond the detection margin: a gap larger than a step can close
-            self._narrow_checked[p.index] = False
             x, point, n = -1.0, d.geom_xpos[p.geom1].copy(), np.array([0.0, 0.0, 1.0])
             det = Detection(np.array([x]), n[None], point[None], point[None], point[None],
                             np.full((1, 2), math.inf), np.full((1, 2), math.inf))
@@ -963,14 +957,25 @@ class MujocoAdapter(EngineAdapter):
         p1, p2 = point + half * n, point - half * n
         det = Detection(np.array([x]), n[None].copy(), point[None].copy(), p1[None], p2[None],
                         np.full((1, 2), math.inf), np.full((1, 2), math.inf))
-        if not self.manager.active[p.index] and not self._narrow_checked[p.index]:  # about to touch
-            g1, g2, s1, s2, _ = self._narrow_pairs[p.narrow]
-            spec = self.pairs[p.index]
-            check_contact_law((spec.body1, spec.body2), spec.law.curvature,
-                              s1, (d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3)),
-                              s2, (d.geom_xpos[g2], d.geom_xmat[g2].reshape(3, 3)), point, n, float(d.time))
-            self._narrow_checked[p.index] = True
+        if not self.manager.active[p.index]:  # about to touch: the law for the curvature there
+            self._narrow_law(p, point, n)
         return det
+
+    def _narrow_law(self, p: _Pair, point, n) -> None:
+        """Give narrow pair p's slot the law for the curvature of both surfaces
+        at ``point`` (normal ``n``) before its onset (engines._narrow.LawBank:
+        the PairSpec's law if it fits, else the same law for this curvature;
+        issue 13). A contact no law here can carry (a line contact, two flat
+        faces) raises ValueError naming both geoms and what to do."""
+        from engines._narrow import contact_law
+
+        d = self.data
+        g1, g2, s1, s2, _ = self._narrow_pairs[p.narrow]
+        spec = self.pairs[p.index]
+        law = contact_law((spec.body1, spec.body2), spec.law, self.laws,
+                          s1, (d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3)),
+                          s2, (d.geom_xpos[g2], d.geom_xmat[g2].reshape(3, 3)), point, n, float(d.time))
+        self.manager.set_law(p.index, law)
 
     def _jacobian(self, body: int, point, out) -> np.ndarray:
         if int(self.model.body_weldid[body]) == 0:
@@ -1235,38 +1240,6 @@ class MujocoAdapter(EngineAdapter):
         for i, (p1, p2, _J) in points.items():
             self._p1[i], self._p2[i] = p1, p2
 
-    def _energy_probe(self, keys):
-        """Kinetic and potential energy [J], gravity's power m g . v [W] and mass [kg] (b,) each of
-        the bodies ``keys`` (root body ids), the manager's timing corrections J taken out
-        of their velocities (+J at body 1's point, -J at body 2's, as applied); NaN
-        for a body that is not a free body (engines._contacts.balance)."""
-        m, d, mgr = self.model, self.data, self.manager
-        b = np.asarray(keys, dtype=np.int64)
-        g = np.array(m.opt.gravity, dtype=float)
-        if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY:
-            g = np.zeros(3)
-        mass = m.body_mass[b]
-        v = d.cvel[b, 3:].copy()  # a single free body: the velocity of its centre of mass, world axes
-        w = d.cvel[b, :3].copy()
-        R = d.ximat[b].reshape(-1, 3, 3)
-        I = m.body_inertia[b]
-        where = {int(k): i for i, k in enumerate(b)}
-        for p in np.flatnonzero(np.any(mgr.J != 0.0, axis=1)):
-            J = mgr.J[p]
-            for side, sgn, pt in ((0, 1.0, self._p1[p]), (1, -1.0, self._p2[p])):
-                i = where.get(int(self._keys[p, side]), -1)
-                if i < 0:
-                    continue
-                v[i] -= sgn * J / mass[i]
-                L = np.cross(pt - d.xipos[b[i]], sgn * J)  # angular impulse about the centre of mass
-                w[i] -= R[i] @ ((R[i].T @ L) / I[i])
-        wl = np.einsum("kji,kj->ki", R, w)  # body axes
-        T = 0.5 * mass * np.einsum("ki,ki->k", v, v) + 0.5 * np.einsum("ki,ki->k", wl * I, wl)
-        U = -mass * (d.xipos[b] @ g)
-        q = mass * (v @ g)
-        bad = ~self._free_body[b]
-        return np.where(bad, np.nan, T), np.where(bad, np.nan, U), np.where(bad, np.nan, q), mass
-
     def _coupling_blocks(self, pp, pq):
         """The manager's coupling blocks (ContactManager.set_coupling): W_pq =
         J_p M^-1 J_q^T and Wc_pq = J_c,p M^-1 J_q^T (b, 3, 3) [1/kg] between the
@@ -1340,6 +1313,42 @@ class MujocoAdapter(EngineAdapter):
                 self._last_dv[f.index[sel]] = f.velocity_change(d, dq, blk, sel)
         for i, J in jacs:
             self._last_dv[i] = J @ dq
+
+    def velocity_offset(self) -> np.ndarray:
+        """What the pending timing corrections add to ``data.qvel`` (nv,)
+        (engines._contacts: an impulse pair J, -J over two steps; for one step
+        after a contact step the engine's velocities carry M^-1 J_p^T J). The
+        physical velocities are ``data.qvel - adapter.velocity_offset()``:
+        read energies and momenta from those (the positions are already where
+        the impulse's timing puts them). Zeros when no correction is pending.
+        Computed on a private MjData at the current qpos, each body's Jacobian
+        at the point of the step that applied the correction."""
+        m = self.model
+        on = np.flatnonzero(np.any(self.manager.J != 0.0, axis=1))
+        out = np.zeros(m.nv)
+        if on.size == 0:
+            return out
+        if getattr(self, "_scratch", None) is None:
+            self._scratch = mujoco.MjData(m)
+        s = self._scratch
+        s.qpos[:] = self.data.qpos
+        if m.nmocap:
+            s.mocap_pos[:], s.mocap_quat[:] = self.data.mocap_pos, self.data.mocap_quat
+        mujoco.mj_kinematics(m, s)
+        mujoco.mj_comPos(m, s)
+        mujoco.mj_makeM(m, s)
+        mujoco.mj_factorM(m, s)
+        Q = np.zeros(m.nv)
+        jac = np.zeros((3, m.nv))
+        for i in on.tolist():
+            p = self._pairs[i]
+            for body, point, sign in ((p.body1, self._p1[i], 1.0), (p.body2, self._p2[i], -1.0)):
+                if int(m.body_weldid[body]) != 0:
+                    mujoco.mj_jac(m, s, jac, None, point, body)
+                    Q += sign * (jac.T @ self.manager.J[i])
+        dq = np.zeros((1, m.nv))
+        mujoco.mj_solveM(m, s, dq, Q.reshape(1, -1))
+        return dq[0]
 
     def _angular_velocity(self, body: int) -> np.ndarray:
         res = np.zeros(6)

@@ -109,7 +109,7 @@ CANDIDATE_FACTOR = 2.0
 #: pybullet at the step, while the MSF sub-cycle sees only the link's inertia:
 #: the contact impulse of a step reaches the constraint one step late. The
 #: first-bounce COR of a rubber ball (R = 20 mm, 2 m/s) on a constraint-held
-#: paddle (tests/test_held_link_pybullet.py), against dt = 0.2 ms: -1.8 % at 0.5 ms
+#: paddle (tests/test_held_link.py), against dt = 0.2 ms: -1.8 % at 0.5 ms
 #: (4.8 steps per contact), -7.3 % at 1 ms (2.4 steps), -5.3 % at 2 ms (1.2
 #: steps). The result holds (2 %) from 4.8 steps per contact and fails at 2.4:
 #: below this many steps per contact a held pair's records are flagged and
@@ -286,7 +286,6 @@ class PybulletAdapter(EngineAdapter):
         self._push = np.full(n, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
         self._cur_bodies: _Bodies | None = None
         self.manager.set_coupling(self._keys, self._coupling_blocks)
-        self.manager.set_energy_probe(self._energy_probe)  # islands' energy balance (engines._contacts.balance)
         # the free bodies' centres of mass at the last step start (B, 3): pybullet integrates
         # positions with the new velocity, com_k = com_{k-1} + dt v_k to round-off (1e-17 m
         # measured), so anything else is a step taken without the adapter or a body placed
@@ -304,13 +303,12 @@ class PybulletAdapter(EngineAdapter):
         self.edge_handoffs = 0
         self.edge_handoffs_of: dict[int, int] = {}
         self._held_warned: set[int] = set()  # held pairs warned about a too coarse step (_flag_held)
-        #: pairs seen in contact while a motor on one of their links' joint chains acted
-        #: (appliedJointMotorTorque != 0; pybullet cannot report the motor settings): pair -> joint
-        self._motor_held: dict[int, str] = {}
-        self._chains: dict[int, list[tuple[int, int]]] = {}  # pair -> [(body uid, joint)] of its links' chains
         # the narrow pairs' points of this step, per slot (x, point, normal) or None (beyond the reach)
         self._narrow_found: list = [None] * n
-        self._narrow_checked = np.zeros(n, bool)  # the slot's curvature was checked against its law
+        from engines._narrow import LawBank
+
+        #: a law per contact curvature, built from the PairSpec's (engines._narrow.LawBank, _narrow_slot)
+        self.laws = LawBank()
 
     # -- validation ---------------------------------------------------------
     def _check_body(self, b, label):
@@ -515,13 +513,7 @@ class PybulletAdapter(EngineAdapter):
     def held_pairs(self) -> set[int]:
         """Indices of the pairs one of whose bodies is held by a pybullet user
         constraint (``createConstraint``, read through ``getConstraintInfo``:
-        a constraint on any link of the body's multibody holds the link) or
-        was seen in contact while a joint motor on its link's chain to the
-        base acted (``setJointMotorControl2`` in any mode; read as a non-zero
-        ``appliedJointMotorTorque``, pybullet cannot report a motor's settings)."""
-        return set(self._constraint_held()) | set(self._motor_held)
-
-    def _constraint_held(self) -> set[int]:
+        a constraint on any link of the body's multibody holds the link)."""
         c = self.client
         uids = set()
         for k in range(pb.getNumConstraints(physicsClientId=c)):
@@ -529,43 +521,19 @@ class PybulletAdapter(EngineAdapter):
             uids.update(u for u in (info[0], info[2]) if u >= 0)
         return {i for i, (b1, b2) in enumerate(self._bodies) if b1[0] in uids or b2[0] in uids}
 
-    def _see_motors(self, pairs) -> None:
-        """Note the pairs in contact whose links' joint chains have a motor acting (_motor_held)."""
-        c = self.client
-        for i in pairs:
-            i = int(i)
-            if i in self._motor_held:
-                continue
-            chain = self._chains.get(i)
-            if chain is None:
-                chain = []
-                for uid, link in self._bodies[i]:
-                    while link >= 0:
-                        info = pb.getJointInfo(uid, link, physicsClientId=c)
-                        if info[2] != pb.JOINT_FIXED:
-                            chain.append((uid, link))
-                        link = info[16]
-                self._chains[i] = chain
-            for uid, j in chain:
-                if pb.getJointState(uid, j, physicsClientId=c)[3] != 0.0:
-                    name = pb.getJointInfo(uid, j, physicsClientId=c)[1].decode()
-                    self._motor_held[i] = f"the motor of joint {j} ({name!r}) of body {uid}"
-                    break
-
     def _flag_held(self, records: list) -> list:
         """Flag (``outside_validity``) the records of constraint-held pairs
         resolved with fewer than HELD_MIN_STEPS steps per contact, and warn
         once per pair (RuntimeWarning: pair, dt, dt_max and what to change)."""
         if not records or not pb.isConnected(self.client):
             return records
-        by_constraint = self._constraint_held()
+        held = self.held_pairs()
         for r in records:
             i = r.inputs.get("pair")
-            if not (i in by_constraint or i in self._motor_held) or not r.tau < HELD_MIN_STEPS * self._dt:
+            if i not in held or not r.tau < HELD_MIN_STEPS * self._dt:
                 continue
             dt_max = r.tau / HELD_MIN_STEPS
-            holder = "a pybullet constraint" if i in by_constraint else self._motor_held[i]
-            note = (f"held link: pair {i} {self.pair_names[i]} is held by {holder} and its contact "
+            note = (f"held link: pair {i} {self.pair_names[i]} is held by a pybullet constraint and its contact "
                     f"(tau = {r.tau:.3g} s) spans {r.tau / self._dt:.2g} < {HELD_MIN_STEPS:g} steps of dt = "
                     f"{self._dt:g} s: the COR is outside 2 % (measured -7 % at 2.4 steps); "
                     f"use dt <= dt_max = {dt_max:.3g} s (setTimeStep)")
@@ -844,23 +812,21 @@ class PybulletAdapter(EngineAdapter):
 
     def _narrow_slot(self, i, poses):
         """(x, n, point) of narrow slot i from this step's points; a slot
-        without a point is far (x = -1 m, as the MuJoCo adapter). At a
-        contact's onset the law's curvature is checked against the contact's
-        (engines._narrow.check_contact_law)."""
-        from engines._narrow import check_contact_law
+        without a point is far (x = -1 m, as the MuJoCo adapter). Until the
+        contact's onset the slot's law follows the curvature at its point
+        (engines._narrow.contact_law: a law per contact point)."""
+        from engines._narrow import contact_law
 
         found = self._narrow_found[i]
         if found is None:
-            self._narrow_checked[i] = False
             return -1.0, np.array([0.0, 0.0, 1.0]), poses[0].com.copy()
         x, point, n = found
-        if not self.manager.active[i] and not self._narrow_checked[i]:
+        if not self.manager.active[i]:
             np_ = self._narrow[self._narrow_of[i][0]]
             pose1 = self._world_shape(np_.shape1, poses[0])
             pose2 = self._world_shape(np_.shape2, poses[1])
-            check_contact_law(self.pair_names[i], self.pairs[i].law.curvature, np_.geom1, pose1, np_.geom2, pose2,
-                              point, n, self.time)
-            self._narrow_checked[i] = True
+            self.manager.set_law(i, contact_law(self.pair_names[i], self.pairs[i].law, self.laws, np_.geom1, pose1,
+                                                np_.geom2, pose2, point, n, self.time))
         return x, n.copy(), point.copy()
 
     def _closing_bound(self, i, poses, grav) -> float:
@@ -1003,10 +969,6 @@ class PybulletAdapter(EngineAdapter):
                 self._apply_couples(bodies, ph, np.asarray(out.torque, float)[hit])
         pb.stepSimulation(self.client)
         self._steps += 1
-        # pairs in contact or that exerted a force this step (a contact may begin and end inside it)
-        touched = np.union1d(self.manager.active_pairs, pair[hit])
-        if touched.size:
-            self._see_motors(touched)
 
     def _lever(self, bodies: _Bodies, kin: ContactKinematics) -> np.ndarray | None:
         """The moving contact point of the rows of free bodies (engines._contacts.state.LEVER_DOC,
@@ -1067,38 +1029,6 @@ class PybulletAdapter(EngineAdapter):
                 dw = R @ (self._b_inv_I[j] * (R.T @ tq)) * self._dt
                 dv += sign * np.cross(dw, self._pt[i] - bodies.com[j])
             self._last_dv[i] += dv
-
-    def _energy_probe(self, keys):
-        """Kinetic and potential energy [J], gravity's power m g . v [W] and mass [kg] (b,) each of
-        the free bodies ``keys`` (slots), the manager's timing corrections J taken out
-        of their velocities (+J on body 1, -J on body 2 at the pair's point); NaN for a
-        multibody's links (engines._contacts.balance)."""
-        bodies, mgr = self._cur_bodies, self.manager
-        k = np.asarray(keys, dtype=np.int64)
-        B = len(self._body_list)
-        link = k >= B
-        j = np.where(link, 0, k)
-        g = self._gravity()
-        inv_m = self._b_inv_m[j]
-        mass = np.where(inv_m > 0, 1.0 / np.where(inv_m > 0, inv_m, 1.0), 0.0)
-        v, w = bodies.v[j].copy(), bodies.w[j].copy()
-        R = bodies.rot[j]
-        where = {int(kk): i for i, kk in enumerate(k)}
-        for p in np.flatnonzero(np.any(mgr.J != 0.0, axis=1)):
-            for side, sgn in ((0, 1.0), (1, -1.0)):
-                i = where.get(int(self._keys[p, side]), -1)
-                if i < 0 or link[i]:
-                    continue
-                Jb = sgn * mgr.J[p]
-                v[i] -= Jb * inv_m[i]
-                L = np.cross(self._pt[p] - bodies.com[j[i]], Jb)
-                w[i] -= R[i] @ (self._b_inv_I[j[i]] * (R[i].T @ L))
-        wl = np.einsum("kji,kj->ki", R, w)  # principal axes
-        I = np.where(self._b_inv_I[j] > 0, 1.0 / np.where(self._b_inv_I[j] > 0, self._b_inv_I[j], 1.0), 0.0)
-        T = 0.5 * mass * np.einsum("ki,ki->k", v, v) + 0.5 * np.einsum("ki,ki->k", wl * I, wl)
-        U = -mass * (bodies.com[j] @ g)
-        q = mass * (v @ g)
-        return np.where(link, np.nan, T), np.where(link, np.nan, U), np.where(link, np.nan, q), mass
 
     def _coupling_blocks(self, pp, pq):
         """The manager's coupling blocks (ContactManager.set_coupling) for free
