@@ -12,7 +12,7 @@ frequency against the engine step,
 (M_dd the joint's diagonal of the joint-space inertia matrix, ``mj_fullM``
 at the adapter's construction; k in N m/rad or N/m).
 
-Measured (docs/engines.md, ``scripts/servo_sweep.py``): a 0.5 kg paddle on a
+Measured (docs/engines.md, ``.venv/bin/python scripts/held_links.py mujoco``): a 0.5 kg paddle on a
 hinge (M_dd = 6.7e-3 kg m^2) struck by a rubber ball (R = 20 mm, 2 m/s,
 contact 2.3-2.5 ms), kp = 1e2-1e5 N m/rad, dt = 0.2-2 ms, Euler, RK4 and
 implicitfast, first-bounce COR against the 0.1 ms run: within 2 % wherever
