@@ -23,7 +23,7 @@ from ._common import log, machine
 
 #: name -> module of benchmarks (each has run(quick) -> list[dict]); the jet last.
 BENCHMARKS = {"per_step": "spheres", "subcycling": "subcycle", "reference": "reference", "sweep": "sweep",
-              "robots": "robots", "jet": "jet"}
+              "robots": "robots", "robots_pybullet": "robots_pybullet", "jet": "jet"}
 
 TARGETS = {
     "mujoco_1000_over_nocontact": 1.5,
@@ -104,11 +104,11 @@ def markdown(records: list[dict], mach: dict, command: str) -> str:
         lines.append("")
     rb = [r for r in records if r["name"] == "robots" and not r.get("failed")]
     if rb:
-        lines += ["## Robot models (pybullet_data/mjcf, MuJoCo, seeded torques)", "",
-                  "| model | dt [s] | MSF [ms/step] | built-in [ms/step] | MSF / built-in | base height MSF / built-in [m] "
-                  "| rest energy rise MSF [J] |", "|---|---:|---:|---:|---:|---:|---:|"]
+        lines += ["## Robot models (pybullet_data/mjcf, seeded torques)", "",
+                  "| engine | model | dt [s] | MSF [ms/step] | built-in [ms/step] | MSF / built-in | base height MSF / "
+                  "built-in [m] | rest energy rise MSF [J] |", "|---|---|---:|---:|---:|---:|---:|---:|"]
         for r in rb:
-            lines.append(f"| {r['model']} | {r['dt']:g} | {_ms(r['msf_step_s'])} | {_ms(r['builtin_step_s'])} | "
+            lines.append(f"| {r.get('engine', 'mujoco')} | {r['model']} | {r['dt']:g} | {_ms(r['msf_step_s'])} | {_ms(r['builtin_step_s'])} | "
                          f"{_x(r['ratio_msf_over_builtin'])} | {r['msf_base_height_m']:.3f} / "
                          f"{r['builtin_base_height_m']:.3f} | {r['msf_rest_energy_rise_J']:.3g} |")
         lines.append("")
