@@ -27,6 +27,12 @@ from .state import (
 )
 
 
+#: Gauss-Legendre nodes of :meth:`ContactManager.stored_energy`'s integral of
+#: the elastic force over the approach (x^(3/2) and linear laws: 1e-6 relative
+#: with 8; the msf k_p factor is smooth in x).
+STORED_ENERGY_NODES = 8
+
+
 class ContactManager(CompiledPath, NumpyPath, Records):
     """Per-contact state, sub-cycled integration and impact records for the
     pairs of one adapter (see the module docstring).
@@ -322,6 +328,28 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             held = self.held(pair, t0 + self.dt)
             self._held_force[pair[held]] = out.force[held]
         return out
+
+    def stored_energy(self) -> float:
+        """Elastic energy held in the contacts in progress [J]: per contact the
+        work of the law's elastic normal force F_n(x, 0) from 0 to the internal
+        approach x (Gauss-Legendre, STORED_ENERGY_NODES nodes: exact for the
+        x^(3/2) and linear laws to round-off) plus k |s|^2 / 2 of the tangential
+        spring (the mean of its two axes' stiffness at x). Kinetic plus
+        potential energy plus this is what a contact conserves or dissipates:
+        a body in contact has part of its energy here."""
+        total = 0.0
+        nodes, weights = np.polynomial.legendre.leggauss(STORED_ENERGY_NODES)
+        for p in np.flatnonzero(self.active & (self.x > 0.0)).tolist():
+            g = self._group_of[p]
+            law = self._groups[g]
+            onset = {k: np.full(nodes.size, v[self._pos[p]]) for k, v in self._onset[g].items()}
+            x = float(self.x[p])
+            xi = 0.5 * x * (nodes + 1.0)
+            F = law.normal_force(xi, np.zeros_like(xi), onset)
+            total += 0.5 * x * float(weights @ F)
+            k, _ = law.tangential_stiffness(np.array([x]), {k: v[:1] for k, v in onset.items()})
+            total += 0.5 * float(np.mean(k)) * float(self.s[p] @ self.s[p])
+        return total
 
     def set_law(self, pair_index: int, law: ForceLaw) -> None:
         """Give pair ``pair_index`` the law ``law`` from its next onset on (a

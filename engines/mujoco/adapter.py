@@ -105,7 +105,6 @@ from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
 from engines._contacts.state import CENTRED_RTOL, lever_terms_free
 from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box, sphere_plane, sphere_sphere
-from engines._sweep import sweep
 from engines.base import (
     STEPS_PER_CONTACT_MIN,
     ContactForces,
@@ -148,7 +147,11 @@ _NARROW = ("sphere", "plane", "box", "capsule", "cylinder", "ellipsoid", "mesh")
 #: Points managed per geom pair from MuJoCo's narrow phase (its deepest ones
 #: when it lists more): a box face or a cylinder end on a plane gives 4, a
 #: capsule 2. A mesh is one smooth convex surface: its deepest point only
-#: (its vertices near the bottom are samples of one contact, not contacts).
+#: (its vertices near the bottom are samples of one contact, not contacts);
+#: a coarse hull whose vertices are contacts, as a box's corners are (the
+#: duck_vhacd.obj hull rolls from vertex to vertex: with one slot a new vertex
+#: already below the plane took the slot as a deep onset, COR 22 in a step),
+#: takes more through the adapter's ``mesh_slots``.
 NARROW_SLOTS = {"box": 4, "cylinder": 4, "capsule": 2}
 _ZERO3 = np.zeros(3)  # what body 2 may be; body 1 is a sphere
 
@@ -307,8 +310,7 @@ class _FreeGroup:
         gf[:, K.F_INVI2:K.F_INVI2 + 3] = np.where(self.free2[:, None], 1.0 / I2, 0.0)
         return gi, gf
 
-    def kinematics(self, m, d, dt, required, last_v, last_dv, have_last, push, last_r, last_gap, hold, hold_n,
-                   hold_x) -> dict:
+    def kinematics(self, m, d, dt, required, last_v, last_dv, have_last, push) -> dict:
         """Candidate rows of the group (a dict of ContactKinematics fields) and
         the a_ext bookkeeping of every pair of the group."""
         k = self.index.size
@@ -320,40 +322,10 @@ class _FreeGroup:
         cvel, com = d.cvel, d.subtree_com
         w1, w2 = cvel[self.b1, :3], cvel[self.b2, :3]  # a welded body's cvel is 0
         c1c, c2c = com[m.body_rootid[self.b1]], com[m.body_rootid[self.b2]]
-        held = ~self.plane & hold[self.index]
-        gap = np.flatnonzero(~self.plane & (x < 0.0) & ~held)
-        if np.any(held):  # a sub-step contact in progress: the normal of its onset (MujocoAdapter._held_geometry)
-            g = np.flatnonzero(held)
-            q = self.index[g]
-            x[g], nrm[g] = hold_x[q], hold_n[q]
-            s = 0.5 * np.maximum(x[g], 0.0)
-            p1[g] = c1[g] - (self.R1[g] - s)[:, None] * nrm[g]
-            p2[g] = d.geom_xpos[self.g2[g]] + (self.R2[g] - s)[:, None] * nrm[g]
-            point[g] = 0.5 * (p1[g] + p2[g])
-        if gap.size:  # spheres closing within the step: the geometry at first touch (engines._sweep)
-            c2 = d.geom_xpos[self.g2[gap]]
-            w = ((cvel[self.b1[gap], 3:] + cross_rows(w1[gap], c1[gap] - c1c[gap]))
-                 - (cvel[self.b2[gap], 3:] + cross_rows(w2[gap], c2 - c2c[gap])))
-            sw, n_sw, x_sw = sweep(c1[gap] - c2, w, self.R1[gap] + self.R2[gap])
-            g, n_sw, x_sw = gap[sw], n_sw[sw], x_sw[sw]
-            x[g], nrm[g] = x_sw, n_sw
-            p1[g] = c1[g] - self.R1[g][:, None] * n_sw
-            p2[g] = c2[sw] + self.R2[g][:, None] * n_sw
-            point[g] = 0.5 * (p1[g] + p2[g])
-        r1, r2 = p1 - c1c, p2 - c2c
-        v_rel = (cvel[self.b1, 3:] + cross_rows(w1, r1)) - (cvel[self.b2, 3:] + cross_rows(w2, r2))
+        v_rel = (cvel[self.b1, 3:] + cross_rows(w1, p1 - c1c)) - (cvel[self.b2, 3:] + cross_rows(w2, p2 - c2c))
         idx = self.index
-        dv = v_rel - last_v[idx] - last_dv[idx]
-        gap = ~self.plane & (x < 0.0)
-        moved = gap & last_gap[idx] & have_last[idx]
-        if np.any(moved):  # last step's v_rel read at this step's points (the adapter's _last_r)
-            q = idx[moved]
-            dv[moved] -= (cross_rows(w1[moved], r1[moved] - last_r[q, :3])
-                          - cross_rows(w2[moved], r2[moved] - last_r[q, 3:]))
-        a_ext = np.where(have_last[idx][:, None], dv / dt, self.a0)
+        a_ext = np.where(have_last[idx][:, None], (v_rel - last_v[idx] - last_dv[idx]) / dt, self.a0)
         last_v[idx], last_dv[idx], have_last[idx] = v_rel, 0.0, True
-        last_gap[idx] = gap
-        last_r[idx[gap], :3], last_r[idx[gap], 3:] = r1[gap], r2[gap]
         xd = -np.einsum("ij,ij->i", v_rel, nrm)
         xdd = -np.einsum("ij,ij->i", a_ext, nrm)
         reach = closing_distance(xd, xdd, dt, CANDIDATE_FACTOR)
@@ -453,7 +425,7 @@ class MujocoAdapter(EngineAdapter):
     name = "mujoco"
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, pairs: list[PairSpec], compiled: bool = True,
-                 edge_radii: dict | None = None):
+                 edge_radii: dict | None = None, mesh_slots: dict | None = None):
         if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
             raise ValueError(f"model, data must be mujoco.MjModel and mujoco.MjData, got "
                              f"{type(model).__name__}, {type(data).__name__}")
@@ -464,6 +436,11 @@ class MujocoAdapter(EngineAdapter):
         self._own_on: set[tuple[int, int]] = set()  # geom pairs MuJoCo would collide (no <exclude>)
         #: edge radius [m] per box or cylinder geom name (msf_contact.shapes.DEFAULT_EDGE_RADIUS otherwise)
         self.edge_radii = dict(edge_radii or {})
+        #: contact points managed per mesh geom name (default 1: a smooth mesh; NARROW_SLOTS)
+        self.mesh_slots = dict(mesh_slots or {})
+        for name, k in self.mesh_slots.items():
+            if int(k) != k or not 1 <= k <= 8:
+                raise ValueError(f"mesh_slots[{name!r}] = {k!r} must be a whole number in [1, 8]")
         self._narrow_pairs: list = []  # per narrow geom pair: (geom1, geom2, shape1, shape2, SlotMatcher)
         self._pairs = []
         expanded = []
@@ -507,15 +484,7 @@ class MujocoAdapter(EngineAdapter):
         self._last_v = np.zeros((P, 3))
         self._last_dv = np.zeros((P, 3))
         self._have_last = np.zeros(P, bool)
-        # a sphere-sphere pair at a gap: its lever arms (body 1's, body 2's contact point from the
-        # root's centre of mass) [m] (P, 6) at the last step, and whether it was at a gap then: the
-        # points move on the spheres as the line of first touch turns (engines._sweep), and v_rel
-        # of the last step is read at this step's points for a_ext
-        self._last_r = np.zeros((P, 6))
-        self._last_gap = np.zeros(P, bool)
         self._fast = _FreeGroup.of(model, [p for p in self._pairs if _vectorisable(model, p)])
-        self._pp = np.zeros(P, bool)  # the free group's sphere-sphere pairs (_held_geometry)
-        self._pp[self._fast.index[~self._fast.plane]] = True
         self._is_fast = np.zeros(P, bool)
         self._is_fast[self._fast.index] = True
         self._slow = [p for p in self._pairs if not self._is_fast[p.index]]
@@ -622,7 +591,9 @@ class MujocoAdapter(EngineAdapter):
                 verts = m.mesh_vert[int(m.mesh_vertadr[k]):int(m.mesh_vertadr[k]) + int(m.mesh_vertnum[k])]
             shapes.append(make_shape(t, m.geom_size[g], edge_radius=self.edge_radii.get(m.geom(g).name),
                                      vertices=verts))
-        n_slots = max(NARROW_SLOTS.get(t1, 1), NARROW_SLOTS.get(t2, 1) if t2 != "plane" else 1)
+        slots = [NARROW_SLOTS.get(t, 1) if t != "mesh" else int(self.mesh_slots.get(m.geom(g).name, 1))
+                 for g, t in ((g1, t1), (g2, t2))]
+        n_slots = max(slots[0], slots[1] if t2 != "plane" else 1)
         k = len(self._narrow_pairs)
         self._narrow_pairs.append((g1, g2, shapes[0], shapes[1], SlotMatcher(n_slots, float(m.geom_rbound[g1]))))
         return [_Pair(first + s, g1, g2, b1, b2, "narrow", float(m.geom_rbound[g1]), fixed1, fixed2, k, s)
@@ -1048,8 +1019,7 @@ class MujocoAdapter(EngineAdapter):
         blocks = []
         W_fast = None
         if self._fast.index.size:
-            blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last, self._push,
-                                        self._last_r, self._last_gap, *self._held_geometry(required))
+            blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last, self._push)
             W_fast = blk
             self._p1[self._fast.index], self._p2[self._fast.index] = blk["p1_all"], blk["p2_all"]
             blocks.append(blk["rows"])
@@ -1106,8 +1076,7 @@ class MujocoAdapter(EngineAdapter):
         if f.index.size:
             err, pair, x, nrm, point, v_rel, v_com, W, W_com, a_ext, p1, p2 = K.free_kinematics(
                 self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat, required,
-                self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push,
-                self._last_r, self._last_gap, *self._held_geometry(required))
+                self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push)
             if err != K.ERR_NONE:
                 for _ in f._detect(d, d.geom_xpos[f.g1]):  # the numpy detection says what is wrong
                     pass
@@ -1169,19 +1138,6 @@ class MujocoAdapter(EngineAdapter):
         """I^-1 = R diag(1/I) R^T in world axes (k, 3, 3) of the bodies b (k,)."""
         R = self.data.ximat[b].reshape(-1, 3, 3)
         return (R * (1.0 / self.model.body_inertia[b])[:, None, :]) @ R.transpose(0, 2, 1)
-
-    def _held_geometry(self, required: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(hold (P,) bool, normal (P, 3), x (P,) [m]): the sphere-sphere pairs of the free group
-        whose contact is shorter than a step (the manager's duration estimate) and is in progress
-        or has a timing correction to remove keep the normal of its onset (the normal of first
-        touch, engines._sweep) and the manager's own approach. The engine has moved both spheres
-        by a whole step's travel meanwhile (two beads passing at 30 m/s: 3 mm in 0.1 ms, 12
-        radii), so its line of centres is no normal for them: a contact that straddled a step
-        start read it (cor_n 0.979 instead of 0.993), and the correction of a contact inside one
-        step was taken back at its point, with the wrong angular impulse (spin 10 % low)."""
-        mgr = self.manager
-        hold = self._pp & required & (mgr.tau_est < self.timestep) & (mgr.active | np.any(mgr.J != 0.0, axis=1))
-        return hold, mgr.n_in, mgr.x
 
     def _lever(self, kin: ContactKinematics) -> np.ndarray | None:
         """The moving contact point of the free group's rows (engines._contacts.state.LEVER_DOC,
