@@ -162,3 +162,24 @@ def test_a_jointed_dumbbell_bounces_without_energy_gain(dt, tilt):
         assert all(abs(r.cor_n / 0.7275 - 1) < 1e-2 for r in ad.records)
     finally:
         pb.disconnect(c)
+
+
+def test_a_floating_multibody_with_only_fixed_joints_is_refused_saying_what_works():
+    c = scenes.new_client(1e-3)
+    try:
+        plane = scenes.add_plate(c)
+        s = pb.createCollisionShape(pb.GEOM_SPHERE, radius=0.02, physicsClientId=c)
+        u = pb.createMultiBody(1.0, s, basePosition=[0, 0, 0.1], linkMasses=[1.0], linkCollisionShapeIndices=[s],
+                               linkVisualShapeIndices=[-1], linkPositions=[[0.2, 0, 0]], linkOrientations=[[0, 0, 0, 1]],
+                               linkInertialFramePositions=[[0, 0, 0]], linkInertialFrameOrientations=[[0, 0, 0, 1]],
+                               linkParentIndices=[0], linkJointTypes=[pb.JOINT_FIXED], linkJointAxis=[[0, 0, 1]],
+                               physicsClientId=c)
+        from msf_contact import Curvature, make_law
+        from engines.base import PairSpec
+
+        law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(0.02))
+        with pytest.raises(ValueError, match=r"body \d+ is a floating multibody whose 1 joints are all fixed.*"
+                                             r"compound collision shape"):
+            PybulletAdapter(c, [PairSpec((u, 0), (plane, -1), law)])
+    finally:
+        pb.disconnect(c)

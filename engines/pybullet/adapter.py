@@ -445,10 +445,19 @@ class PybulletAdapter(EngineAdapter):
         return _Bodies(com, self._k.rotations(q) if self.compiled else _mats(q), v, w, frame)
 
     def _articulated(self, b):
-        """A link of a multibody, or the base of a floating-base multibody with joints."""
+        """A link of a multibody, or the base of a floating-base multibody with
+        joints. A floating multibody whose joints are all fixed is refused:
+        pybullet's calculateJacobian needs a movable joint."""
+        c = self.client
+        nj = pb.getNumJoints(b[0], physicsClientId=c)
+        if nj and not self._base_fixed(b[0]) and all(pb.getJointInfo(b[0], j, physicsClientId=c)[2] == pb.JOINT_FIXED
+                                                     for j in range(nj)):
+            raise ValueError(f"body {b[0]} is a floating multibody whose {nj} joints are all fixed: pybullet's "
+                             "calculateJacobian (the contact's inverse inertia) needs a movable joint; make it one "
+                             "body with a compound collision shape, or leave it to pybullet's own contact")
         if b[1] >= 0:
             return True
-        return pb.getNumJoints(b[0], physicsClientId=self.client) > 0 and not self._fixed(b)
+        return nj > 0 and not self._fixed(b)
 
     def _link_key(self, k, what) -> tuple[int, int]:
         try:
