@@ -71,7 +71,7 @@ def sweep_mujoco(kps, integrators) -> None:
 
 
 def kuka_strike(dt: float, holder: str):
-    """The first-bounce record on the KUKA-held paddle (holder: 'constraint' or 'motors')."""
+    """The first-bounce record on the KUKA-held paddle (holder: 'constraint' or 'motor')."""
     from engines.base import PairSpec
     from engines.pybullet import PybulletAdapter, scenes
 
@@ -93,7 +93,7 @@ def kuka_strike(dt: float, holder: str):
 def sweep_kuka() -> None:
     print("| holder | dt [ms] | steps per contact | COR | vs 0.2 ms | flagged |")
     print("|---|---|---|---|---|---|")
-    for holder in ("constraint", "motors"):
+    for holder in ("constraint", "motor"):
         ref = kuka_strike(KUKA_STEPS[0], holder)
         for dt in KUKA_STEPS:
             rec = kuka_strike(dt, holder)

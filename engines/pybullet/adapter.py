@@ -109,7 +109,7 @@ CANDIDATE_FACTOR = 2.0
 #: pybullet at the step, while the MSF sub-cycle sees only the link's inertia:
 #: the contact impulse of a step reaches the constraint one step late. The
 #: first-bounce COR of a rubber ball (R = 20 mm, 2 m/s) on a constraint-held
-#: paddle (tests/test_held_link.py), against dt = 0.2 ms: -1.8 % at 0.5 ms
+#: paddle (tests/test_held_link_pybullet.py), against dt = 0.2 ms: -1.8 % at 0.5 ms
 #: (4.8 steps per contact), -7.3 % at 1 ms (2.4 steps), -5.3 % at 2 ms (1.2
 #: steps). The result holds (2 %) from 4.8 steps per contact and fails at 2.4:
 #: below this many steps per contact a held pair's records are flagged and
@@ -312,6 +312,10 @@ class PybulletAdapter(EngineAdapter):
         self._mb_cache: dict = {}  # per step: a multibody's joint state and inverse mass matrix (_multibody)
         self._movable: dict[int, list[int]] = {}  # a multibody's movable joints
         self._limits: dict[int, np.ndarray] = {}  # their (lower, upper) limits [rad or m]
+        #: pairs seen in contact while a motor on one of their links' joint chains acted
+        #: (appliedJointMotorTorque != 0; pybullet cannot report the motor settings): pair -> joint
+        self._motor_held: dict[int, str] = {}
+        self._chains: dict[int, list[tuple[int, int]]] = {}  # pair -> [(body uid, joint)] of its links' chains
         # the narrow pairs' points of this step, per slot (x, point, normal) or None (beyond the reach)
         self._narrow_found: list = [None] * n
         from engines._narrow import LawBank
@@ -535,7 +539,13 @@ class PybulletAdapter(EngineAdapter):
     def held_pairs(self) -> set[int]:
         """Indices of the pairs one of whose bodies is held by a pybullet user
         constraint (``createConstraint``, read through ``getConstraintInfo``:
-        a constraint on any link of the body's multibody holds the link)."""
+        a constraint on any link of the body's multibody holds the link) or
+        was seen in contact while a joint motor on its link's chain to the
+        base acted (``setJointMotorControl2`` in any mode; read as a non-zero
+        ``appliedJointMotorTorque``, pybullet cannot report a motor's settings)."""
+        return set(self._constraint_held()) | set(self._motor_held)
+
+    def _constraint_held(self) -> set[int]:
         c = self.client
         uids = set()
         for k in range(pb.getNumConstraints(physicsClientId=c)):
@@ -543,19 +553,43 @@ class PybulletAdapter(EngineAdapter):
             uids.update(u for u in (info[0], info[2]) if u >= 0)
         return {i for i, (b1, b2) in enumerate(self._bodies) if b1[0] in uids or b2[0] in uids}
 
+    def _see_motors(self, pairs) -> None:
+        """Note the pairs in contact whose links' joint chains have a motor acting (_motor_held)."""
+        c = self.client
+        for i in pairs:
+            i = int(i)
+            if i in self._motor_held:
+                continue
+            chain = self._chains.get(i)
+            if chain is None:
+                chain = []
+                for uid, link in self._bodies[i]:
+                    while link >= 0:
+                        info = pb.getJointInfo(uid, link, physicsClientId=c)
+                        if info[2] != pb.JOINT_FIXED:
+                            chain.append((uid, link))
+                        link = info[16]
+                self._chains[i] = chain
+            for uid, j in chain:
+                if pb.getJointState(uid, j, physicsClientId=c)[3] != 0.0:
+                    name = pb.getJointInfo(uid, j, physicsClientId=c)[1].decode()
+                    self._motor_held[i] = f"the motor of joint {j} ({name!r}) of body {uid}"
+                    break
+
     def _flag_held(self, records: list) -> list:
         """Flag (``outside_validity``) the records of constraint-held pairs
         resolved with fewer than HELD_MIN_STEPS steps per contact, and warn
         once per pair (RuntimeWarning: pair, dt, dt_max and what to change)."""
         if not records or not pb.isConnected(self.client):
             return records
-        held = self.held_pairs()
+        by_constraint = self._constraint_held()
         for r in records:
             i = r.inputs.get("pair")
-            if i not in held or not r.tau < HELD_MIN_STEPS * self._dt:
+            if not (i in by_constraint or i in self._motor_held) or not r.tau < HELD_MIN_STEPS * self._dt:
                 continue
             dt_max = r.tau / HELD_MIN_STEPS
-            note = (f"held link: pair {i} {self.pair_names[i]} is held by a pybullet constraint and its contact "
+            holder = "a pybullet constraint" if i in by_constraint else self._motor_held[i]
+            note = (f"held link: pair {i} {self.pair_names[i]} is held by {holder} and its contact "
                     f"(tau = {r.tau:.3g} s) spans {r.tau / self._dt:.2g} < {HELD_MIN_STEPS:g} steps of dt = "
                     f"{self._dt:g} s: the COR is outside 2 % (measured -7 % at 2.4 steps); "
                     f"use dt <= dt_max = {dt_max:.3g} s (setTimeStep)")
@@ -1037,6 +1071,10 @@ class PybulletAdapter(EngineAdapter):
                 self._apply_couples(bodies, ph, np.asarray(out.torque, float)[hit])
         pb.stepSimulation(self.client)
         self._steps += 1
+        # pairs in contact or that exerted a force this step (a contact may begin and end inside it)
+        touched = np.union1d(self.manager.active_pairs, pair[hit])
+        if touched.size:
+            self._see_motors(touched)
 
     def _lever(self, bodies: _Bodies, kin: ContactKinematics) -> np.ndarray | None:
         """The moving contact point of the rows of free bodies (engines._contacts.state.LEVER_DOC,

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 import pybullet as pb
 
-from msf_contact._validate import check_finite, check_positive, check_range
+from msf_contact._validate import check_choice, check_finite, check_positive, check_range
 from msf_contact.solver import Body
 
 #: Speed clamp put in place of pybullet's default 100 (rad/s or m/s) [1/s]:
@@ -219,3 +219,71 @@ def paddle_and_ball(body1: Body, paddle: Paddle, hit_at: float, speed: float, *,
                              physicsClientId=c)
     ball = add_sphere(c, body1, [hit_at, 0.0, paddle.half_thickness + body1.radius + gap], [0.0, 0.0, -speed])
     return Scene(c, dt, (ball, -1), (uid, 0), {"paddle": paddle, "hit_at": hit_at, "joint": 0})
+
+
+#: pybullet_data's KUKA iiwa posture for kuka_paddle [rad] (joints 1-7): elbow
+#: bent, the flange up and 0.57 m out from the base axis.
+KUKA_POSTURE = (0.0, 0.6, 0.0, -1.2, 0.0, 0.6, 0.0)
+#: The KUKA motors' gains in kuka_paddle (pybullet_envs' kuka.py uses these):
+#: POSITION_CONTROL positionGain, velocityGain [-], maximum force [N m] (the URDF's effort limit).
+KUKA_POSITION_GAIN, KUKA_VELOCITY_GAIN, KUKA_MAX_FORCE = 0.3, 1.0, 300.0
+
+
+def kuka_paddle(body1: Body, speed: float, *, dt: float, holder: str = "constraint", paddle: Paddle = Paddle(),
+                hit_x: float = 0.1, gap: float = 0.0, gravity: float | None = None) -> Scene:
+    """A ball falling at ``speed`` [m/s] onto a paddle held by an arm
+    (issue 11): pybullet_data's ``kuka_iiwa/model.urdf`` (fixed base) at
+    KUKA_POSTURE, every joint held there by a POSITION_CONTROL motor
+    (KUKA_POSITION_GAIN, KUKA_VELOCITY_GAIN, KUKA_MAX_FORCE). ``holder``:
+
+    - ``"constraint"``: the paddle (a free box, ``paddle``'s sizes and mass,
+      top face horizontal) is held on the flange (link 6) by a JOINT_FIXED
+      ``createConstraint``, 30 mm above it; the ball hits ``hit_x`` [m] from
+      the paddle's centre along +x;
+    - ``"motor"``: no arm; the paddle is the hinged link of
+      :func:`paddle_and_ball`, held at 0 by a POSITION_CONTROL motor on its
+      hinge with the same gains, hit ``paddle.length / 2`` from the hinge.
+
+    Body 1 is the ball, body 2 the paddle; pybullet's own contact between
+    the paddle and the arm is off."""
+    import pybullet_data
+
+    check_choice("holder", holder, ("constraint", "motor"))
+    if holder == "motor":
+        sc = paddle_and_ball(body1, paddle, paddle.length / 2, speed, dt=dt, gap=gap, gravity=gravity)
+        pb.setJointMotorControl2(sc.body2[0], 0, pb.POSITION_CONTROL, targetPosition=0.0, targetVelocity=0.0,
+                                 force=KUKA_MAX_FORCE, positionGain=KUKA_POSITION_GAIN,
+                                 velocityGain=KUKA_VELOCITY_GAIN, physicsClientId=sc.client)
+        sc.info["holder"] = "motor"
+        return sc
+    check_range("hit_x (from the paddle's centre)", abs(hit_x), 0.0, paddle.length / 2, hi_open=True)
+    c = new_client(dt, gravity)
+    pb.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=c)
+    arm = pb.loadURDF("kuka_iiwa/model.urdf", useFixedBase=True, physicsClientId=c)
+    for j, q in enumerate(KUKA_POSTURE):
+        pb.resetJointState(arm, j, q, 0.0, physicsClientId=c)
+        _free_dynamics(c, arm, j)
+    pb.setJointMotorControlArray(arm, list(range(len(KUKA_POSTURE))), pb.POSITION_CONTROL,
+                                 targetPositions=list(KUKA_POSTURE), targetVelocities=[0.0] * len(KUKA_POSTURE),
+                                 forces=[KUKA_MAX_FORCE] * len(KUKA_POSTURE),
+                                 positionGains=[KUKA_POSITION_GAIN] * len(KUKA_POSTURE),
+                                 velocityGains=[KUKA_VELOCITY_GAIN] * len(KUKA_POSTURE), physicsClientId=c)
+    flange = len(KUKA_POSTURE) - 1
+    fpos, forn = pb.getLinkState(arm, flange, computeForwardKinematics=True, physicsClientId=c)[4:6]
+    half = [paddle.length / 2, paddle.half_width, paddle.half_thickness]
+    centre = np.array(fpos) + [0.0, 0.0, 0.03 + paddle.half_thickness]
+    box = pb.createCollisionShape(pb.GEOM_BOX, halfExtents=half, physicsClientId=c)
+    pad = pb.createMultiBody(paddle.mass, box, basePosition=list(centre), physicsClientId=c)
+    pb.changeDynamics(pad, -1, localInertiaDiagonal=list(paddle.inertia_com), physicsClientId=c)
+    _free_dynamics(c, pad)
+    for j in range(-1, pb.getNumJoints(arm, physicsClientId=c)):
+        pb.setCollisionFilterPair(arm, pad, j, -1, 0, physicsClientId=c)
+    # the paddle's pose in the flange's link frame: the constraint holds it there
+    inv_p, inv_o = pb.invertTransform(fpos, forn)
+    rel_p, rel_o = pb.multiplyTransforms(inv_p, inv_o, list(centre), [0, 0, 0, 1])
+    cid = pb.createConstraint(arm, flange, pad, -1, pb.JOINT_FIXED, [0, 0, 0], rel_p, [0, 0, 0],
+                              parentFrameOrientation=rel_o, physicsClientId=c)
+    ball = add_sphere(c, body1, [centre[0] + hit_x, centre[1], centre[2] + paddle.half_thickness + body1.radius + gap],
+                      [0.0, 0.0, -speed])
+    return Scene(c, dt, (ball, -1), (pad, -1), {"paddle": paddle, "arm": arm, "constraint": cid,
+                                                   "holder": "constraint", "hit_x": hit_x})
