@@ -105,6 +105,7 @@ from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
 from engines._contacts.state import CENTRED_RTOL, lever_terms_free
 from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box, sphere_plane, sphere_sphere
+from engines._sweep import sweep
 from engines.base import (
     STEPS_PER_CONTACT_MIN,
     ContactForces,
@@ -310,7 +311,8 @@ class _FreeGroup:
         gf[:, K.F_INVI2:K.F_INVI2 + 3] = np.where(self.free2[:, None], 1.0 / I2, 0.0)
         return gi, gf
 
-    def kinematics(self, m, d, dt, required, last_v, last_dv, have_last, push) -> dict:
+    def kinematics(self, m, d, dt, required, last_v, last_dv, have_last, push, last_r, last_gap, hold, hold_n,
+                   hold_x) -> dict:
         """Candidate rows of the group (a dict of ContactKinematics fields) and
         the a_ext bookkeeping of every pair of the group."""
         k = self.index.size
@@ -322,10 +324,40 @@ class _FreeGroup:
         cvel, com = d.cvel, d.subtree_com
         w1, w2 = cvel[self.b1, :3], cvel[self.b2, :3]  # a welded body's cvel is 0
         c1c, c2c = com[m.body_rootid[self.b1]], com[m.body_rootid[self.b2]]
-        v_rel = (cvel[self.b1, 3:] + cross_rows(w1, p1 - c1c)) - (cvel[self.b2, 3:] + cross_rows(w2, p2 - c2c))
+        held = ~self.plane & hold[self.index]
+        gap = np.flatnonzero(~self.plane & (x < 0.0) & ~held)
+        if np.any(held):  # a sub-step contact in progress: the normal of its onset (MujocoAdapter._held_geometry)
+            g = np.flatnonzero(held)
+            q = self.index[g]
+            x[g], nrm[g] = hold_x[q], hold_n[q]
+            s = 0.5 * np.maximum(x[g], 0.0)
+            p1[g] = c1[g] - (self.R1[g] - s)[:, None] * nrm[g]
+            p2[g] = d.geom_xpos[self.g2[g]] + (self.R2[g] - s)[:, None] * nrm[g]
+            point[g] = 0.5 * (p1[g] + p2[g])
+        if gap.size:  # spheres closing within the step: the geometry at first touch (engines._sweep)
+            c2 = d.geom_xpos[self.g2[gap]]
+            w = ((cvel[self.b1[gap], 3:] + cross_rows(w1[gap], c1[gap] - c1c[gap]))
+                 - (cvel[self.b2[gap], 3:] + cross_rows(w2[gap], c2 - c2c[gap])))
+            sw, n_sw, x_sw = sweep(c1[gap] - c2, w, self.R1[gap] + self.R2[gap])
+            g, n_sw, x_sw = gap[sw], n_sw[sw], x_sw[sw]
+            x[g], nrm[g] = x_sw, n_sw
+            p1[g] = c1[g] - self.R1[g][:, None] * n_sw
+            p2[g] = c2[sw] + self.R2[g][:, None] * n_sw
+            point[g] = 0.5 * (p1[g] + p2[g])
+        r1, r2 = p1 - c1c, p2 - c2c
+        v_rel = (cvel[self.b1, 3:] + cross_rows(w1, r1)) - (cvel[self.b2, 3:] + cross_rows(w2, r2))
         idx = self.index
-        a_ext = np.where(have_last[idx][:, None], (v_rel - last_v[idx] - last_dv[idx]) / dt, self.a0)
+        dv = v_rel - last_v[idx] - last_dv[idx]
+        gap = ~self.plane & (x < 0.0)
+        moved = gap & last_gap[idx] & have_last[idx]
+        if np.any(moved):  # last step's v_rel read at this step's points (the adapter's _last_r)
+            q = idx[moved]
+            dv[moved] -= (cross_rows(w1[moved], r1[moved] - last_r[q, :3])
+                          - cross_rows(w2[moved], r2[moved] - last_r[q, 3:]))
+        a_ext = np.where(have_last[idx][:, None], dv / dt, self.a0)
         last_v[idx], last_dv[idx], have_last[idx] = v_rel, 0.0, True
+        last_gap[idx] = gap
+        last_r[idx[gap], :3], last_r[idx[gap], 3:] = r1[gap], r2[gap]
         xd = -np.einsum("ij,ij->i", v_rel, nrm)
         xdd = -np.einsum("ij,ij->i", a_ext, nrm)
         reach = closing_distance(xd, xdd, dt, CANDIDATE_FACTOR)
@@ -484,7 +516,15 @@ class MujocoAdapter(EngineAdapter):
         self._last_v = np.zeros((P, 3))
         self._last_dv = np.zeros((P, 3))
         self._have_last = np.zeros(P, bool)
+        # a sphere-sphere pair at a gap: its lever arms (body 1's, body 2's contact point from the
+        # root's centre of mass) [m] (P, 6) at the last step, and whether it was at a gap then: the
+        # points move on the spheres as the line of first touch turns (engines._sweep), and v_rel
+        # of the last step is read at this step's points for a_ext
+        self._last_r = np.zeros((P, 6))
+        self._last_gap = np.zeros(P, bool)
         self._fast = _FreeGroup.of(model, [p for p in self._pairs if _vectorisable(model, p)])
+        self._pp = np.zeros(P, bool)  # the free group's sphere-sphere pairs (_held_geometry)
+        self._pp[self._fast.index[~self._fast.plane]] = True
         self._is_fast = np.zeros(P, bool)
         self._is_fast[self._fast.index] = True
         self._slow = [p for p in self._pairs if not self._is_fast[p.index]]
@@ -1019,7 +1059,8 @@ class MujocoAdapter(EngineAdapter):
         blocks = []
         W_fast = None
         if self._fast.index.size:
-            blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last, self._push)
+            blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last, self._push,
+                                        self._last_r, self._last_gap, *self._held_geometry(required))
             W_fast = blk
             self._p1[self._fast.index], self._p2[self._fast.index] = blk["p1_all"], blk["p2_all"]
             blocks.append(blk["rows"])
@@ -1076,7 +1117,8 @@ class MujocoAdapter(EngineAdapter):
         if f.index.size:
             err, pair, x, nrm, point, v_rel, v_com, W, W_com, a_ext, p1, p2 = K.free_kinematics(
                 self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat, required,
-                self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push)
+                self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push,
+                self._last_r, self._last_gap, *self._held_geometry(required))
             if err != K.ERR_NONE:
                 for _ in f._detect(d, d.geom_xpos[f.g1]):  # the numpy detection says what is wrong
                     pass
@@ -1138,6 +1180,19 @@ class MujocoAdapter(EngineAdapter):
         """I^-1 = R diag(1/I) R^T in world axes (k, 3, 3) of the bodies b (k,)."""
         R = self.data.ximat[b].reshape(-1, 3, 3)
         return (R * (1.0 / self.model.body_inertia[b])[:, None, :]) @ R.transpose(0, 2, 1)
+
+    def _held_geometry(self, required: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(hold (P,) bool, normal (P, 3), x (P,) [m]): the sphere-sphere pairs of the free group
+        whose contact is shorter than a step (the manager's duration estimate) and is in progress
+        or has a timing correction to remove keep the normal of its onset (the normal of first
+        touch, engines._sweep) and the manager's own approach. The engine has moved both spheres
+        by a whole step's travel meanwhile (two beads passing at 30 m/s: 3 mm in 0.1 ms, 12
+        radii), so its line of centres is no normal for them: a contact that straddled a step
+        start read it (cor_n 0.979 instead of 0.993), and the correction of a contact inside one
+        step was taken back at its point, with the wrong angular impulse (spin 10 % low)."""
+        mgr = self.manager
+        hold = self._pp & required & (mgr.tau_est < self.timestep) & (mgr.active | np.any(mgr.J != 0.0, axis=1))
+        return hold, mgr.n_in, mgr.x
 
     def _lever(self, kin: ContactKinematics) -> np.ndarray | None:
         """The moving contact point of the free group's rows (engines._contacts.state.LEVER_DOC,
