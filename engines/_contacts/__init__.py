@@ -75,6 +75,15 @@ Islands. With the adapter's coupling blocks (:meth:`ContactManager.set_coupling`
 contacts that share a moving body within a step are integrated together
 (:mod:`.islands`); a contact alone takes the path described here.
 
+Gaps between steps. The engine's position leads the integrated one by
+dt/2 times the step's velocity change (semi-implicit Euler moves a body by
+dt v_end), so a pair not in contact that was a candidate in the last step
+keeps the manager's gap, relaxed toward the engine's by settle_rate and
+never past touching (:meth:`ContactManager._own_gaps`, for the pairs the
+adapters mark in ``own_gap``: free spheres): otherwise a light body
+rattling between two contacts begins its next contact already up to the
+lead deep, with elastic energy no force worked for.
+
 Moving contact point. When the adapter gives ``ContactKinematics.lever``
 (free bodies in both adapters) the contact point moves with the overlap
 inside the step: W(d), the contact-point velocity's kinematic change and
@@ -110,7 +119,8 @@ Modules: :mod:`.state` (constants, the state vector's layout, helpers
 both paths share), :mod:`.manager` (:class:`ContactManager`: per-pair
 state and the step's dispatch), :mod:`.reference`, :mod:`.compiled`,
 :mod:`.records` (onsets and impact records), :mod:`.islands` (contacts
-that share a moving body, integrated together).
+that share a moving body, integrated together), :mod:`.balance` (an
+island's energy over each step: a gain is flagged and warned).
 """
 
 from .compiled import kernel_law

@@ -6,7 +6,6 @@ The algorithm: the package docstring (:mod:`engines._contacts`)."""
 
 from __future__ import annotations
 
-import dataclasses
 import math
 from typing import Any, Callable
 
@@ -20,17 +19,12 @@ from ..contract import STEPS_PER_CONTACT_MIN, ContactForces, ContactKinematics, 
 from .compiled import CompiledPath, kernel_law
 from .records import Records
 from .reference import NumpyPath
-from .islands import islands, step_island
+from .balance import IslandBalance
+from .islands import TOUCH_TOL, islands, step_island
 from .state import (
     L_G0, L_ON, L_W01, L_W11, L_XREF, NL, NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES,
     _dot, _name,
 )
-
-
-#: Gauss-Legendre nodes of :meth:`ContactManager.stored_energy`'s integral of
-#: the elastic force over the approach (x^(3/2) and linear laws: 1e-6 relative
-#: with 8; the msf k_p factor is smooth in x).
-STORED_ENERGY_NODES = 8
 
 
 class ContactManager(CompiledPath, NumpyPath, Records):
@@ -110,11 +104,10 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self._kcodes = np.array([self._kernel_law[g][0] for g in kgs], dtype=np.int64)
         self._kLC = np.array([self._kernel_law[g][1] for g in kgs], dtype=float).reshape(len(kgs), K.NLC)
         kidx = {g: j for j, g in enumerate(kgs)}
-        self._kidx = kidx  # law group -> its row in _kcodes/_kLC
-        self._slot_pos = {(i, int(self._group_of[i])): int(self._pos[i]) for i in range(P)}  # set_law
         self._kg_of_pair = np.array([kidx.get(g, -1) for g in self._group_of], dtype=np.int64)
         self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
         self._coupling: tuple[np.ndarray, Callable] | None = None  # set_coupling
+        self._balance: IslandBalance | None = None  # set_energy_probe
         self._probe: Callable[[int], dict] | None = None
         self._probe_batch: Callable[[], Callable[[int], dict]] | None = None
         #: (P, 2) bool: the contact of the pair does not depend on the orientation of body 1 / body 2
@@ -152,6 +145,9 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self.vc_in = z3.copy()  #: centre-of-mass relative tangential velocity at onset [m/s] (P, 3)
         self.vc = z3.copy()  #: centre-of-mass relative velocity at the end of the last step [m/s] (P, 3)
         self.x_max = fl[K.F_XMAX]  #: maximum approach so far [m]
+        #: approach at onset [m]: 0 for a contact begun at touching; > 0 for one found already
+        #: overlapping (its elastic energy up to there was never worked for: engines._contacts.balance)
+        self.x_onset = z.copy()
         self.x_turn = fl[K.F_XTURN]  #: approach at the first maximum compression [m]
         self.tau1 = fl[K.F_TAU1]  #: compression time [s]
         self.F_max = fl[K.F_FMAX]  #: peak normal force [N]
@@ -170,6 +166,15 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         #: solved in an island of several contacts in the last step (P,): the adapters keep such a
         #: pair's force out of the held forces of a_ext (the island couples it explicitly)
         self.in_island = np.zeros(P, bool)
+        self._listed = np.zeros(P, bool)  # a candidate row in the last step (its x is the manager's)
+        self._xd0 = z.copy()  # approach rate at the last step's start, engine's less dv_corr [m/s] (_own_gaps)
+        self._an = z.copy()  # a_ext along n in the last step [m/s^2] (_own_gaps)
+        self._off = z.copy()  # bound on the engine's lead over the manager's x [m] (_own_gaps)
+        #: pairs whose gap the manager may keep between steps (_own_gaps): the adapters set it for free
+        #: spheres on planes, fixed or free spheres, whose integrated gap (n and W frozen over a step) is
+        #: second order; a link's point moves with its joints and the engine's gap is taken (P,)
+        self.own_gap = np.zeros(P, bool)
+        self._gain_note: list[str | None] = [None] * P  # an island energy gain seen during the pair's contact
         self._island_contact = np.zeros(P, bool)  # the pair's current contact was in an island at some step
         self._held_force = np.zeros((P, 3))  #: the step-averaged forces held into the next step [N] (P, 3)
         self.J = z3.copy()  #: timing-correction impulse applied in the last step, removed in the next [N s] (P, 3)
@@ -253,6 +258,8 @@ class ContactManager(CompiledPath, NumpyPath, Records):
     def step(self, kin: ContactKinematics) -> ContactForces:
         """Integrate the candidate contacts over one engine step; return the
         step-averaged forces on body 1 at the contact points."""
+        if self._balance is not None:  # the islands of the last step, now that the engine applied it
+            self._balance.close(self, float(kin.t) - self.dt)
         self._finish_pending(at_step_start=True)
         pair = np.asarray(kin.pair, dtype=int).reshape(-1)
         k = pair.shape[0]
@@ -274,6 +281,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         if code:
             self._invalid(code, row, pair, x, n, point, v, vc, W, Wc, a)
         n = n_unit
+        x = self._own_gaps(pair, x, n, v, a)
         L = None
         lev = getattr(kin, "lever", None)
         if lev is not None:
@@ -323,73 +331,43 @@ class ContactManager(CompiledPath, NumpyPath, Records):
                 self.couple[q] += 0.5 * np.cross(n[own], PD)
             self.x_J[pair] = L[:, L_XREF]
             out.torque = self.couple[pair] / self.dt
+        self._listed[:] = False
+        self._listed[pair] = True
         if self._coupling is not None:  # the forces the adapters hold into the next step's a_ext
             self._held_force[:] = 0.0
             held = self.held(pair, t0 + self.dt)
             self._held_force[pair[held]] = out.force[held]
         return out
 
-    def stored_energy(self) -> float:
-        """Elastic energy held in the contacts in progress [J]: per contact the
-        work of the law's elastic normal force F_n(x, 0) from 0 to the internal
-        approach x (Gauss-Legendre, STORED_ENERGY_NODES nodes: exact for the
-        x^(3/2) and linear laws to round-off) plus k |s|^2 / 2 of the tangential
-        spring (the mean of its two axes' stiffness at x). Kinetic plus
-        potential energy plus this is what a contact conserves or dissipates:
-        a body in contact has part of its energy here."""
-        total = 0.0
-        nodes, weights = np.polynomial.legendre.leggauss(STORED_ENERGY_NODES)
-        for p in np.flatnonzero(self.active & (self.x > 0.0)).tolist():
-            g = self._group_of[p]
-            law = self._groups[g]
-            onset = {k: np.full(nodes.size, v[self._pos[p]]) for k, v in self._onset[g].items()}
-            x = float(self.x[p])
-            xi = 0.5 * x * (nodes + 1.0)
-            F = law.normal_force(xi, np.zeros_like(xi), onset)
-            total += 0.5 * x * float(weights @ F)
-            k, _ = law.tangential_stiffness(np.array([x]), {k: v[:1] for k, v in onset.items()})
-            total += 0.5 * float(np.mean(k)) * float(self.s[p] @ self.s[p])
-        return total
-
-    def set_law(self, pair_index: int, law: ForceLaw) -> None:
-        """Give pair ``pair_index`` the law ``law`` from its next onset on (a
-        curvature per contact point: an adapter whose narrow phase finds the
-        point where the pair's law was not built for, issue 13). Only between
-        contacts: a pair in contact keeps its law (ValueError); a finished
-        contact's record was made with its own law. The pair joins ``law``'s
-        group (created on first use, compiled when the kernel knows it)."""
-        p = int(pair_index)
-        if not 0 <= p < len(self.pairs):
-            raise ValueError(f"pair_index = {pair_index!r} is outside [0, {len(self.pairs) - 1}]")
-        if not isinstance(law, ForceLaw):
-            raise ValueError(f"law = {law!r} is not a msf_contact ForceLaw")
-        g = id(law)
-        if self._group_of[p] == g:
-            return
-        if self.active[p]:
-            raise ValueError(f"pair {p} is in contact: its law changes only between contacts")
-        if g not in self._groups:
-            self._groups[g] = law
-            self._onset[g] = {}
-            self._group_size[g] = 0
-            self._kernel_law[g] = kernel_law(law) if self.compiled else None
-            if self._kernel_law[g] is not None:
-                code, lc = self._kernel_law[g]
-                self._kcodes = np.append(self._kcodes, np.int64(code))
-                self._kLC = np.vstack([self._kLC, np.asarray(lc, dtype=float).reshape(1, K.NLC)])
-                self._kidx[g] = self._kcodes.size - 1
-        pos = self._slot_pos.get((p, g))
-        if pos is None:  # a new place in the group's onset arrays for this pair
-            pos = self._slot_pos[(p, g)] = self._group_size[g]
-            self._group_size[g] = pos + 1
-            store = self._onset[g]
-            for key in store:
-                store[key] = np.append(store[key], np.nan)
-        self._group_of[p] = g
-        self._pos[p] = pos
-        self._kg_of_pair[p] = self._kidx.get(g, -1)
-        self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
-        self.pairs[p] = dataclasses.replace(self.pairs[p], law=law)
+    def _own_gaps(self, pair, x, n, v, a) -> np.ndarray:
+        """The gaps (k,) [m] the step starts from: a pair not in contact that was
+        a candidate in the last step (and that the adapter marks in ``own_gap``)
+        keeps the manager's own gap from the end of that step, relaxed toward the engine's x by settle_rate and never past
+        touching. The engine's semi-implicit Euler moves a body by dt v_end, so
+        after a step in which its velocity changed by dv its gap leads the
+        integrated one by up to dt |dv| / 2 (a light ball rattling between two
+        stiff contacts: up to 0.4 mm at 1 ms); taken as is, a contact would
+        begin already that deep, with elastic energy no force worked for
+        (engines._contacts.balance; tests/test_pile.py). Only where the two differ
+        by no more than twice that lead, dt/2 (|x'_end - x'_start| + |a_n| dt) a
+        step, summed over the steps the manager's x was used (in contact, or a
+        kept gap, whose sum decays by settle_rate), plus TOUCH_TOL: a larger
+        difference is not the integrator's (a narrow phase's point beyond its
+        margin, a face or point that changed) and the engine's gap is taken."""
+        xm = self.x[pair]
+        act, listed = self.active[pair], self._listed[pair]
+        lead = 0.5 * self.dt * (np.abs(self.xdot[pair] - self._xd0[pair]) + np.abs(self._an[pair]) * self.dt)
+        # the bound on the difference, accumulated while the manager's x is used (in contact, or a gap
+        # kept and relaxed by settle_rate); 0 where the engine's x was taken
+        off = np.where(listed, self._off[pair] * np.where(act, 1.0, 1.0 - self.settle_rate) + lead, 0.0)
+        own = self.own_gap[pair] & ~act & listed & (xm <= 0.0) & (np.abs(x - xm) <= 2.0 * off + TOUCH_TOL)
+        self._off[pair] = np.where(act | own, off, 0.0)
+        # this step's start, for the next step's lead
+        self._xd0[pair] = -_dot(v - self.dv_corr[pair], n)
+        self._an[pair] = -_dot(a, n)
+        if not np.any(own):
+            return x
+        return np.where(own, np.minimum(xm + self.settle_rate * (x - xm), 0.0), x)
 
     def held(self, pair, t_next: float) -> np.ndarray:
         """Which of the pairs ``pair`` (k,) hold their force into the next step
@@ -452,6 +430,35 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         if not callable(blocks):
             raise ValueError(f"blocks = {blocks!r} must be callable or None")
         self._coupling = (keys, blocks)
+
+    def set_energy_probe(self, probe: Callable | None) -> None:
+        """Check every island's energy over each step (engines._contacts.balance):
+        probe(keys (b,) int) -> (T, U, q, m) (b,) each: kinetic [J] and gravitational
+        potential [J] energy of the bodies with the manager's timing corrections
+        taken out of their velocities, gravity's power m g . v [W] and the mass
+        [kg]; NaN for a body it cannot account for. None switches the check off."""
+        if probe is not None and not callable(probe):
+            raise ValueError(f"probe = {probe!r} must be callable or None")
+        self._balance = None if probe is None else IslandBalance(probe)
+
+    @property
+    def island_energy_gains(self) -> list:
+        """Islands found with an energy gain: (t [s], pairs, gain [J], allowed [J])
+        each (engines._contacts.balance; empty without an energy probe)."""
+        return [] if self._balance is None else list(self._balance.gains)
+
+    def flag_contact(self, p: int, note: str, t: float) -> None:
+        """Put ``note`` in the outside_validity of pair p's contact that was in
+        progress at time t [s]: the one still active, or its record if it ended
+        since."""
+        if self.active[p]:
+            self._gain_note[p] = note
+            return
+        for rec in [e[1] for e in self._pending] + self.records[::-1]:
+            if rec.inputs.get("pair") == p and rec.inputs.get("t_end", -np.inf) >= t:
+                if note not in rec.outside_validity:
+                    rec.outside_validity.append(note)
+                return
 
     def _island_rows(self, pair, t0, n, v, W):
         """Island label per row for the rows in islands of two or more (others -1), or None."""
@@ -522,6 +529,9 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             info["island_rows"] += int(r.size)
             self.in_island[pp] = True
             self._island_contact[pp] = True  # contacts that begin in it: Records._begin
+            if self._balance is not None:
+                bk = np.unique(keys[keys >= 0])
+                self._balance.open(self, pp, bk, IslandBalance.stored(self, pp))
             P = step_island(self, pp, x[r], n[r], v[r], vc[r], W[r], Wc[r], a_r, t0, info, cp, cq, Wpq, Wcpq,
                             self._rest_rows[r])
             force[r] = P / self.dt

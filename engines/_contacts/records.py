@@ -89,6 +89,7 @@ class Records:
         vc = y[new, _VC]
         self.vc_in[pp] = vc - _dot(vc, n)[:, None] * n
         self.x_max[pp] = np.maximum(y[new, _X], 0.0)
+        self.x_onset[pp] = y[new, _X]
         self.x_turn[pp] = 0.0
         self.turned[pp] = False
         self.tau1[pp] = 0.0
@@ -100,6 +101,8 @@ class Records:
         self.W_visc_comp[pp] = 0.0
         self.outside[pp] = False
         y[new, _S] = 0.0
+        for q in pp:
+            self._gain_note[int(q)] = None
         y[new, _WEL] = y[new, _WVI] = y[new, _Q] = y[new, _WT] = 0.0
         if self._probe is not None:
             for q in pp:
@@ -140,6 +143,8 @@ class Records:
         strain = small_strain_note(x_m, law.geom.R)
         if strain:
             outside.append(strain)
+        if self._gain_note[p]:
+            outside.append(self._gain_note[p])
         gain = self._energy_gain(p, vin, v_out, lu, yl[_WT])
         if gain:
             outside.append(gain)
@@ -178,9 +183,8 @@ class Records:
                 "v_n_in": float(self.v_n_in[p]), "v_n_onset_used": float(self.v_n_used[p]),
                 "v_t_in": lu, "mass_effective": float(self.m_eff[p]), "tangential": self.pairs[p].tangential,
                 "internal_step": float(self.h[p]), "tau_estimate": float(self.tau_est[p]),
-                "x_max_overall": float(self.x_max[p]), "onset": onset,
+                "x_max_overall": float(self.x_max[p]), "x_onset": float(self.x_onset[p]), "onset": onset,
                 "point": self.p_in[p].tolist(), "normal": self.n_in[p].tolist(),
-                "island": bool(self._island_contact[p]),  # began inside an island (engines._contacts.islands)
             },
             outside_validity=outside,
         )
@@ -260,6 +264,8 @@ class Records:
         self.dvc_corr[sel] = 0.0
         self._held_force[sel] = 0.0
         self.in_island[sel] = False
+        self._listed[sel] = False
+        self._off[sel] = 0.0
         return dropped
 
     def _rotation_note(self, p: int, rec: ImpactRecord) -> str | None:

@@ -1,0 +1,148 @@
+"""The energy balance of an island over one engine step (issue 10 item 4,
+"never silent"): an island of contacts solved together
+(:mod:`.islands`) that ends a step with more kinetic + potential + stored
+energy than it began with, beyond a named tolerance, is flagged on its
+records and warned once, naming the pairs, dt and what to change.
+
+What is compared. The island's bodies (their keys, :meth:`ContactManager.set_coupling`)
+carry E_b = kinetic + gravitational potential energy, read by the adapter's
+energy probe (:meth:`ContactManager.set_energy_probe`) at the start of the
+step and at the start of the next one, both with the manager's timing
+corrections taken out of the engine's velocities (the corrections are a
+velocity offset for one step, engines._contacts). The contacts hold
+S = sum over the island's rows in contact of E_el(x) + W_t - Q_t: the
+elastic energy int_0^x F_n(x', 0) dx' of the normal force at the internal
+overlap x (a state function, so a contact begun already overlapping, whose
+work W_el since onset never saw the energy from 0 to x, counts it), plus the
+work against the tangential force less its viscous part (the stored
+tangential energy plus what slip dissipated). Inside the step the island
+integrates
+
+    dKE = -(dW_el + dW_visc + dW_t)          (the contacts' forces on the bodies)
+
+and dW_el = dE_el along the step's continuous x, so E + S changes by
+-(dW_visc + dQ_t) <= 0: viscous and slip losses only (a contact that ends
+takes its stored energy with it: a loss). A
+rise is work the island's integration did not see: an onset found already
+overlapping (its stored energy F dx from 0 to x was never worked), the
+settle relaxation of a resting row's x toward the engine's, a contact of
+another island or a held force acting on the island's bodies a step late, a
+drive or the engine's own contact. The rows whose contact begins inside the
+step give their last contact's S back first (it is reset at onset).
+
+Tolerance. ``ENERGY_GAIN_RTOL`` (1e-3, the per-contact bound) of the
+island's kinetic + stored energy at the step start, and at least 0.5 m
+V_ONSET_MIN^2 per body (the manager's smallest onset speed: touching bodies
+at rest exchange round-off, 1e-34 J measured in a resting cradle), plus the engines'
+semi-implicit (symplectic) Euler step: it moves a body by dt v_end, not by
+the mean velocity, so its position leads the exact one by dt/2 times its
+velocity change within the step, and gravity's potential is off by
+dt/2 |m g . dv| per body (``q`` of the probe: the gravity power m g . v, so
+the bound is dt/2 |q_end - q_start|). Islands that are not all free bodies
+(links of chains: joint springs and drives do work the probe does not see)
+are not checked (the adapters give no probe value for them).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from msf_contact._validate import ValidityWarning
+
+from .state import ENERGY_GAIN_RTOL, V_ONSET_MIN
+
+
+#: Gauss-Legendre nodes and weights on [0, 1] for the elastic energy (elastic_energy).
+_GL_S, _GL_W = np.polynomial.legendre.leggauss(8)
+_GL_S, _GL_W = 0.5 * (_GL_S + 1.0), 0.5 * _GL_W
+
+
+def elastic_energy(law, x, onset) -> np.ndarray:
+    """Elastic energy of the law's normal force at overlap x [m] (k,): int_0^x
+    F_n(x', 0) dx' [J] (the rate-free force is the elastic part, as the
+    settled path's F_n(x_e, 0)), by 8-point Gauss-Legendre after x' = x s^2
+    (F ~ x'^(3/2) near 0 becomes ~ s^3 x: smooth; exact to ~1e-12 for Hertz)."""
+    x = np.asarray(x, dtype=float)
+    if x.size == 0:
+        return np.zeros(0)
+    xs = x[:, None] * _GL_S[None, :] ** 2  # (k, 8)
+    o = {key: np.repeat(np.asarray(val, dtype=float), _GL_S.size) for key, val in onset.items()}
+    F = law.contact_normal_force(xs.reshape(-1), np.zeros(xs.size), o).reshape(xs.shape)
+    return np.sum(F * (2.0 * x[:, None] * _GL_S[None, :]) * _GL_W[None, :], axis=1)
+
+
+class IslandBalance:
+    """Per-step energy bookkeeping of a manager's islands (see the module docstring).
+
+    probe(keys (b,) int) -> (T (b,) [J], U (b,) [J], q (b,) [W], m (b,) [kg]):
+    kinetic and gravitational potential energy of each body with the timing
+    corrections taken out, gravity's power m g . v on it, and its mass; NaN
+    for a body it cannot account for (the island is then not checked)."""
+
+    def __init__(self, probe):
+        self.probe = probe
+        self._open: list[tuple] = []  # (pairs (k,), keys (b,), E0, q0, S0 + reset work, scale)
+        #: islands found with an energy gain: (t [s], pairs, gain [J], allowed [J])
+        self.gains: list[tuple[float, tuple, float, float]] = []
+        self.warned = False
+        self.checked = 0  #: island steps checked
+
+    @staticmethod
+    def stored(mgr, pp) -> float:
+        """S of the rows pp (module docstring) [J]: for each row in contact, the
+        elastic energy of its normal force at its internal overlap plus W_t - Q_t."""
+        pp = np.asarray(pp)
+        on = pp[mgr.active[pp]]
+        if on.size == 0:
+            return 0.0
+        S = float(np.sum(mgr.W_t[on] - mgr.Q_t[on]))
+        for g in np.unique(mgr._group_of[on]):
+            q = on[mgr._group_of[on] == g]
+            o = {key: arr[mgr._pos[q]] for key, arr in mgr._onset[g].items()}
+            S += float(np.sum(elastic_energy(mgr._groups[g], np.maximum(mgr.x[q], 0.0), o)))
+        return S
+
+    def open(self, mgr, pp, keys, S0: float) -> None:
+        """An island of rows pp (k,) on bodies keys (b,) begins its step
+        (before it is integrated); S0 its rows' stored energy now."""
+        T0, U0, q0, m = (np.asarray(a, dtype=float) for a in self.probe(keys))
+        if not all(np.all(np.isfinite(a)) for a in (T0, U0, q0, m)):
+            return
+        # the scale of the relative tolerance: kinetic energy and the normal energy stored in contact, at
+        # least the kinetic energy of the bodies at the manager's smallest onset speed (round-off below it)
+        scale = (float(T0.sum()) + abs(float(np.sum(mgr.W_el[pp][mgr.active[pp]])))
+                 + 0.5 * float(m.sum()) * V_ONSET_MIN**2 / ENERGY_GAIN_RTOL)
+        self._open.append((np.asarray(pp).copy(), np.asarray(keys).copy(), float(T0.sum() + U0.sum()), q0, S0,
+                           scale))
+
+    def close(self, mgr, t_start: float) -> None:
+        """At the start of the next step (the engine has applied the step):
+        compare each island's E + S with its start; flag and warn on a gain."""
+        if not self._open:
+            return
+        opened, self._open = self._open, []
+        for pp, keys, E0, q0, S0, scale in opened:
+            T1, U1, q1, _m = (np.asarray(a, dtype=float) for a in self.probe(keys))
+            if not all(np.all(np.isfinite(a)) for a in (T1, U1, q1)):
+                continue
+            self.checked += 1
+            gain = (float(T1.sum() + U1.sum()) + self.stored(mgr, pp)) - (E0 + S0)
+            allowed = ENERGY_GAIN_RTOL * scale + 0.5 * mgr.dt * float(np.sum(np.abs(q1 - q0)))
+            if gain > allowed:
+                self._flag(mgr, pp, t_start, gain, allowed)
+
+    def _flag(self, mgr, pp, t, gain, allowed) -> None:
+        names = [f"{int(p)} ({mgr.pair_names[int(p)][0]}, {mgr.pair_names[int(p)][1]})" for p in pp]
+        note = (f"island energy gained: pairs {', '.join(names)}, dt = {mgr.dt:g} s: kinetic + potential + stored "
+                f"energy rose by {gain:.3g} J in the step ending at t = {t + mgr.dt:.6g} s (allowed {allowed:.3g} J): "
+                "work the island did not integrate (a contact found already overlapping, a force of another "
+                "island or a drive acting a step late); take a smaller dt")
+        self.gains.append((float(t), tuple(int(p) for p in pp), float(gain), float(allowed)))
+        for p in pp:
+            mgr.flag_contact(int(p), note, t)
+        if not self.warned:
+            self.warned = True
+            warnings.warn(note + " (warned once; every later one is flagged on its records and listed in "
+                          "ContactManager.island_energy_gains)", ValidityWarning, stacklevel=3)
