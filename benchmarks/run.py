@@ -23,7 +23,7 @@ from ._common import log, machine
 
 #: name -> module of benchmarks (each has run(quick) -> list[dict]); the jet last.
 BENCHMARKS = {"per_step": "spheres", "subcycling": "subcycle", "reference": "reference", "sweep": "sweep",
-              "robots": "robots", "jet": "jet"}
+              "robots": "robots", "robots_pybullet": "robots_pybullet", "pile": "pile", "jet": "jet"}
 
 TARGETS = {
     "mujoco_1000_over_nocontact": 1.5,
@@ -104,13 +104,26 @@ def markdown(records: list[dict], mach: dict, command: str) -> str:
         lines.append("")
     rb = [r for r in records if r["name"] == "robots" and not r.get("failed")]
     if rb:
-        lines += ["## Robot models (pybullet_data/mjcf, MuJoCo, seeded torques)", "",
-                  "| model | dt [s] | MSF [ms/step] | built-in [ms/step] | MSF / built-in | base height MSF / built-in [m] "
-                  "| rest energy rise MSF [J] |", "|---|---:|---:|---:|---:|---:|---:|"]
+        lines += ["## Robot models (pybullet_data/mjcf, seeded torques)", "",
+                  "| engine | model | dt [s] | MSF [ms/step] | built-in [ms/step] | MSF / built-in | base height MSF / "
+                  "built-in [m] | rest energy rise MSF [J] |", "|---|---|---:|---:|---:|---:|---:|---:|"]
         for r in rb:
-            lines.append(f"| {r['model']} | {r['dt']:g} | {_ms(r['msf_step_s'])} | {_ms(r['builtin_step_s'])} | "
+            lines.append(f"| {r.get('engine', 'mujoco')} | {r['model']} | {r['dt']:g} | {_ms(r['msf_step_s'])} | {_ms(r['builtin_step_s'])} | "
                          f"{_x(r['ratio_msf_over_builtin'])} | {r['msf_base_height_m']:.3f} / "
                          f"{r['builtin_base_height_m']:.3f} | {r['msf_rest_energy_rise_J']:.3g} |")
+        lines.append("")
+    pl = [r for r in records if r["name"] == "pile"]
+    if pl:
+        lines += ["## 1,000-sphere pile in MuJoCo (cost only; dt = 1 ms, CPU medians)", "",
+                  "| N | MSF pairs | MSF [ms] | built-in [ms] | MSF/built-in | MSF contacts | island rows | finite |",
+                  "|---:|---:|---:|---:|---:|---:|---:|---|"]
+        for r in pl:
+            if r.get("failed"):
+                lines.append(f"| {r['n_bodies']} | failed: {r['reason']} | | | | | | |")
+                continue
+            lines.append(f"| {r['n_bodies']} | {r['msf_pairs']} | {_ms(r['msf_step_s'])} | "
+                         f"{_ms(r['builtin_step_s'])} | {_x(r['ratio_msf_over_builtin'])} | {r['msf_contacts_at_end']} | "
+                         f"{r['msf_island_rows_at_end']} | {r['finite']} |")
         lines.append("")
     jet = [r for r in records if r["name"] == "jet"]
     if jet:

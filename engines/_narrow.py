@@ -39,7 +39,34 @@ MESH_CURVATURE_RTOL = 1e-2
 
 def curvature_tolerance(shape1, shape2) -> float:
     """How far a law's effective radii may be from the contact's [-]."""
-    return MESH_CURVATURE_RTOL if isinstance(shape1, Mesh) or isinstance(shape2, Mesh) else CURVATURE_RTOL
+    meshes = (Mesh, ConvexMesh)
+    return MESH_CURVATURE_RTOL if isinstance(shape1, meshes) or isinstance(shape2, meshes) else CURVATURE_RTOL
+
+
+@dataclass(frozen=True)
+class ConvexMesh:
+    """A mesh geom as the engines collide it: its convex hull, standing for a
+    smooth convex surface. The curvature is the local fit of
+    :class:`msf_contact.shapes.Mesh`, where a principal curvature of the fit
+    below ``k_min`` [1/m] (a coarse hull's flat facet, or a concave fit of
+    an object made of several convex parts, e.g. ``duck_vhacd.obj``) is
+    raised to ``k_min`` = 1 / (the largest vertex distance from the geom's
+    centre): the flattest the smooth surface is taken to be, the sphere
+    that holds the mesh. Otherwise it is the Mesh (its other methods too)."""
+
+    mesh: Mesh
+    k_min: float
+
+    def curvature(self, point, normal) -> SurfaceCurvature:
+        s = self.mesh.curvature(point, normal)
+        if s.k2 >= self.k_min:
+            return s
+        return SurfaceCurvature(max(s.k1, self.k_min), self.k_min, s.d1, s.d2)
+
+    def __getattr__(self, name):
+        if name.startswith("__") or name == "mesh":  # copy/pickle look these up before mesh is set
+            raise AttributeError(name)
+        return getattr(self.mesh, name)
 
 #: A point of the engine's list continues a slot when it is within this
 #: share of the body's size (its geom's largest half-extent) of the slot's
@@ -78,7 +105,8 @@ def make_shape(kind: str, size, *, edge_radius: float | None = None, vertices=No
     if kind == "mesh":
         if vertices is None:
             raise ValueError("a mesh geom needs its vertices for the curvature's local fit")
-        return Mesh(np.asarray(vertices, dtype=float), min(30, len(vertices)))
+        v = np.asarray(vertices, dtype=float)
+        return ConvexMesh(Mesh(v, min(30, len(v))), 1.0 / float(np.max(np.linalg.norm(v, axis=1))))
     raise ValueError(f"geom kind {kind!r} has no curvature model (sphere, plane, ellipsoid, capsule, cylinder, "
                      "box and mesh have)")
 
@@ -183,26 +211,59 @@ class SlotMatcher:
         return out
 
 
-def check_contact_law(names: tuple, law_curvature: Curvature, shape1, pose1, shape2, pose2, point, normal,
-                      t: float) -> Curvature:
-    """The curvature of a narrow-phase contact about to begin, checked
-    against the pair's law (both engines: one law per pair). names: the two
-    geoms' (bodies', links') names for the message; the rest as
-    :func:`contact_curvature`; t [s] the engine time. ValueError, naming
-    both and what would make it work, for a contact the law cannot carry (a
-    line contact, two flat faces) or one whose effective radii (13) differ
-    from the law's by more than :func:`curvature_tolerance`."""
+def contact_law(names: tuple, template, bank: "LawBank", shape1, pose1, shape2, pose2, point, normal, t: float):
+    """The law for a narrow-phase contact about to begin (both engines; a
+    curvature per contact point): ``bank.law_for`` the pair's law
+    ``template`` and the curvature of both surfaces at the point
+    (:func:`contact_curvature`). names: the two geoms' (bodies', links')
+    names for the message; t [s] the engine time. ValueError, naming both
+    and what would make it work, for a contact no law here carries (a line
+    contact, two flat faces, a concave fit)."""
     a, b = names
     try:
         curv = contact_curvature(shape1, pose1, shape2, pose2, point, normal)
+        return bank.law_for(template, curv, curvature_tolerance(shape1, shape2))
     except ValueError as exc:
         raise ValueError(f"pair ({a!r}, {b!r}) at t = {t:.6g} s: {exc}; the engines have no law for it yet (a "
                          "line contact's footprint law is in msf_contact only): use the built-in contact for this "
                          "pair") from None
-    bad, tol = curvature_mismatch(law_curvature, curv), curvature_tolerance(shape1, shape2)
-    if bad > tol:
-        raise ValueError(
-            f"pair ({a!r}, {b!r}) at t = {t:.6g} s: the contact's curvature {curv} differs from the law's "
-            f"{law_curvature} by {bad:.3g} (> {tol}); the engines keep one law per pair: build the law with the "
-            "curvature at the contact (engines._narrow.contact_curvature / msf_contact.curvature.relative_curvature)")
-    return curv
+
+
+class LawBank:
+    """A law per contact curvature (issue 13: a curvature per contact point).
+
+    A pair's law is built for one curvature; an engine's narrow phase finds
+    the pair's contacts wherever the bodies touch (a tumbling ellipsoid or
+    mesh, a cylinder's rim at another tilt, a box's corner or edge). At each
+    onset the adapter asks :meth:`law_for` for the law of the contact's
+    curvature: the pair's own law when its effective radii (13) are within
+    the tolerance, else the same law (materials, options) rebuilt for the
+    contact's curvature (:meth:`msf_contact.laws.ForceLaw.with_curvature`),
+    kept per bin of the effective radii (log bins of the tolerance's width)
+    so a resting or rocking body reuses its few laws (the manager's law
+    groups and the compiled kernel's constants stay few)."""
+
+    def __init__(self):
+        self._laws: dict[tuple, object] = {}
+
+    @staticmethod
+    def _bin(r: float, tol: float):
+        return None if math.isinf(r) else int(round(math.log(r) / math.log1p(tol)))
+
+    def law_for(self, template, curv: Curvature, tol: float):
+        """The law for a contact of curvature ``curv``: ``template`` (the
+        pair's law) if its effective radii are within ``tol`` of the
+        contact's, else a law of the same kind and options built for
+        ``curv`` (one per bin; ValueError from the law for a curvature it
+        cannot carry)."""
+        if curvature_mismatch(template.curvature, curv) <= tol:
+            return template
+        ra, rb = effective_radii(curv)
+        key = (id(template), self._bin(ra, tol), self._bin(rb, tol), curv.footprint)
+        law = self._laws.get(key)
+        if law is None or curvature_mismatch(law.curvature, curv) > tol:
+            law = self._laws[key] = template.with_curvature(curv)
+        return law
+
+    def __len__(self) -> int:
+        return len(self._laws)

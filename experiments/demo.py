@@ -139,9 +139,9 @@ def run_demo(out: Path, quiet: bool = False) -> Path:
     figs = sorted((jet / "figures").glob("*.png"))
     jet_section = ("\n## Abrasive jet\n\nGlass beads on a polyurethane coating, MSF particle-plate contacts in "
                    "MuJoCo and pybullet with a recycled pool of bodies; full report: "
-                   "[jet/report.md](jet/report.md). The normal restitution follows the reference solver; "
-                   "the tangential one does not for these deep, sub-step contacts (`docs/engines.md`, "
-                   "known limits).\n\n"
+                   "[jet/report.md](jet/report.md). The normal and the tangential restitution follow the "
+                   "reference solver, though the beads sink deep within one step: the sub-cycle moves the "
+                   "contact point with the overlap (`docs/engines.md`, deep and oblique contacts).\n\n"
                    + "".join(f"![{p.stem}](jet/figures/{p.name})\n\n" for p in figs))
     cor_table = pivot(rows, "cor_n", 1.0, ".4f", engines)
     report = (

@@ -28,6 +28,7 @@ x/R -> 2 and ``outside(x)`` flags such contacts for the caller to report.
 from __future__ import annotations
 
 import abc
+import copy
 import functools
 import math
 from typing import ClassVar
@@ -103,6 +104,20 @@ class ForceLaw(abc.ABC):
     @abc.abstractmethod
     def tangential_stiffness(self, x, onset) -> tuple[np.ndarray, np.ndarray]:
         """Tangential (stiffness [N/m], damping [N s/m]) along axes a and b, each (n, 2)."""
+
+    def with_curvature(self, curvature: Curvature) -> "ForceLaw":
+        """The same law (materials, options) for another contact curvature:
+        an engine's contact point whose principal radii differ from this
+        law's (a tumbling ellipsoid or mesh, a cylinder's rim at another
+        tilt). The options are kept as they are; what depends on the
+        curvature (``geom``) is rebuilt and checked as in the constructor."""
+        new = copy.copy(self)
+        ForceLaw.__init__(new, self.pair, curvature, separation=self.separation, mu=self.mu, kp_mode=self.kp_mode)
+        new._check_curvature()
+        return new
+
+    def _check_curvature(self) -> None:
+        """Checks of a subclass on the curvature (the constructor's), run by :meth:`with_curvature`."""
 
     def parameters(self) -> dict:
         m = self.moduli
@@ -232,14 +247,17 @@ class MSFLaw(ForceLaw):
         else:
             check_positive("omega", omega, unit="rad/s")
             omega = float(omega)
-        if omega == "paper" and self.geom.footprint is not None:
-            raise ValueError("omega = 'paper' takes tau from the sphere's closed form (95); a line contact "
-                             "(footprint) needs omega = 'self-consistent' or a fixed number")
         self.omega = omega
+        self._check_curvature()
         self.temperature = temperature
         self.strict = strict
         if not pair.frequency_dependent:
             check_tan_delta("tan_delta (effective, (91))", self.moduli.tan_delta, strict=strict)
+
+    def _check_curvature(self) -> None:
+        if self.omega == "paper" and self.geom.footprint is not None:
+            raise ValueError("omega = 'paper' takes tau from the sphere's closed form (95); a line contact "
+                             "(footprint) needs omega = 'self-consistent' or a fixed number")
 
     def parameters(self):
         p = super().parameters()

@@ -39,7 +39,14 @@ class ImpactRecord:
     f_min, f_max: extremes of f = |F_t|/F_n (4) while F_n >= 1% of F_max [-].
     omega_x, omega_y: the collision frequencies used (46) [rad/s].
     ended_by: "force-zero", "overlap-zero" or "capture".
-    outside_validity: reasons the impact left the model's validity (empty if none).
+    outside_validity: reasons the impact left the model's validity, one
+        sentence each (empty if none): x_max/R above the small-strain bound,
+        x_max at 2R, |F_t|/F_n above the friction cap, energy gained (paper
+        mode, or a push from outside the contact in an engine), a non-finite
+        result; from the engines also a body turning more than pi/4 per step
+        whose contact depends on its orientation, and a held link the step
+        does not resolve (a stiff servo, a constraint over too few steps;
+        docs/engines.md, known limits).
     law, parameters: the law and all its parameters. engine, dt: what produced it.
     inputs: the impact's inputs (speeds, angle, spin, bodies).
     """

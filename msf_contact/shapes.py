@@ -142,7 +142,12 @@ class Cylinder:
     torus of tube radius rho = edge_radius around the circle of radius
     radius - rho: where the normal makes the angle alpha with the radial
     direction, 1/rho in the meridian plane and cos(alpha)/(radius - rho + rho cos alpha)
-    along the rim.
+    along the rim. A point with a radial normal at or beyond the rim's
+    start (|z| >= half_length - edge_radius) is on the rim (alpha = 0: 1/rho
+    and 1/radius), whatever the side would say: engines report a cylinder
+    lying on a plane as the two ends of its bottom line (MuJoCo), on the
+    seam of side and rim, as they report a capsule by its end spheres; the
+    straight side between them is left out (docs/engines.md).
     """
 
     radius: float
@@ -169,8 +174,12 @@ class Cylinder:
             radial = np.array([p[0], p[1], 0.0]) / r_xy
             return _line(1.0 / rho, radial, n)
         radial = np.array([n[0], n[1], 0.0]) / nr
-        if abs(n[2]) <= NORMAL_TOL:  # the side
+        on_rim = abs(float(p[2])) >= self.half_length - rho
+        if abs(n[2]) <= NORMAL_TOL and not on_rim:  # the side
             return _line(1.0 / self.radius, np.cross(np.array([0.0, 0.0, 1.0]), radial), n)
+        if abs(n[2]) <= NORMAL_TOL:  # the seam of side and rim (cos alpha = 1): engines report a
+            # cylinder lying on a plane as the two ends of its bottom line, as a capsule's end spheres
+            return _sc(1.0 / rho, 1.0 / self.radius, np.array([0.0, 0.0, 1.0]), np.cross(n, [0.0, 0.0, 1.0]))
         # the rim torus: meridian direction in the (radial, z) plane, perpendicular to n
         cos_a = nr
         meridian = _unit(np.cross(np.cross(radial, np.array([0.0, 0.0, 1.0])), n), "meridian")

@@ -2,6 +2,7 @@
 the numbers docs/jet.md quotes.
 
     .venv/bin/python scripts/jet_check.py reference     # plate impacts: cor_t, spin_out, W_diss_t, cor_n
+    .venv/bin/python scripts/jet_check.py dense         # particle-particle records of the dense jet (MuJoCo)
 
 ``reference``: the jet of tests/test_jet.py (0.2 and 0.3 mm glass beads at
 30 +- 3 m/s on polyurethane, 45 deg axis, 20 deg cone, 2e4 particles/s,
@@ -10,6 +11,12 @@ each row against :func:`msf_contact.simulate_impact` at the row's
 ``speed_in``, ``angle_deg`` and ``spin_in``: the largest relative error of
 cor_t, spin_out and W_diss_t, the largest absolute error of cor_n, and the
 ranges of the inputs.
+
+``dense``: the dense jet of tests/test_jet_pp.py (beads overtaking each
+other in flight, MuJoCo, 24 plate impacts): every particle-particle row
+with its closing speed, cor_n against :func:`simulate_impact` for the
+sphere-sphere pair, W_diss_n, W_diss_t, whether it began in an island and
+whether it was alone (no other contact of either bead within half a step).
 """
 
 from __future__ import annotations
@@ -69,12 +76,48 @@ def reference(impacts: int = 40) -> None:
               f"{worst['W_diss_t']:.2g} | {worst['cor_n']:.2g} |")
 
 
+def dense(impacts: int = 24) -> None:
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+    from test_jet_pp import ALONE_WINDOW, R, dense_spec  # the test's jet and its window
+
+    spec = dense_spec()
+    _, rows = run_rows("mujoco", spec, impacts)
+    law = spec.pp_laws()[(0, 0)]
+    b = Body.sphere(spec.particles.material, R)
+    spans: dict[int, list] = {}
+    for r in rows:
+        if r["kind"] == "impact":
+            spans.setdefault(r["particle"], []).append((r["t_onset"], r["t_onset"] + r["tau"]))
+        else:
+            for i in (r["p1"], r["p2"]):
+                spans.setdefault(i, []).append((r["t_onset"], r["t_end"]))
+    pp = [r for r in rows if r["kind"] == "particle-particle"]
+    print(f"{len(pp)} particle-particle records, {sum(r['kind'] == 'impact' for r in rows)} plate impacts")
+    print("| beads | t_onset [ms] | v_n_in [m/s] | cor_n | reference | difference | W_diss_n [J] | W_diss_t [J] "
+          "| island | alone |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---|---|")
+    for r in pp:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ValidityWarning)
+            ref = simulate_impact(law, b, b, r["v_n_in"], 90.0)
+        others = [s for i in (r["p1"], r["p2"]) for s in spans[i] if s != (r["t_onset"], r["t_end"])]
+        alone = all(abs(s[0] - r["t_onset"]) > ALONE_WINDOW for s in others)
+        print(f"| {r['p1']}, {r['p2']} | {r['t_onset'] * 1e3:.4f} | {r['v_n_in']:.3f} | {r['cor_n']:.6f} | "
+              f"{ref.cor_n:.6f} | {r['cor_n'] - ref.cor_n:+.1e} | {r['W_diss_n']:.3g} | {r['W_diss_t']:.3g} | "
+              f"{r['island']} | {alone} |")
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("what", choices=("reference",))
+    ap.add_argument("what", choices=("reference", "dense"))
     a = ap.parse_args(argv)
     if a.what == "reference":
         reference()
+    else:
+        dense()
 
 
 if __name__ == "__main__":

@@ -82,6 +82,10 @@ def test_mujoco_resting_ball_reads_its_weight_in_the_api_and_a_user_sensor():
         np.testing.assert_allclose(floor, -rep.force, rtol=0, atol=1e-15)
         # MuJoCo's touch sensor sees only MuJoCo's own contacts: none here (documented)
         assert data.sensor("touch").data[0] == 0.0 and data.ncon == 0
+        # ... and cfrc_ext too: MSF's force is a passive force, in qfrc_passive (documented)
+        mujoco.mj_rnePostConstraint(model, data)
+        assert not np.any(data.cfrc_ext[model.body("ball").id])
+        assert data.qfrc_passive[2] == pytest.approx(weight, rel=REST_RTOL)
     assert mujoco.get_mjcb_sensor() is None and mujoco.get_mjcb_passive() is None
 
 

@@ -150,6 +150,12 @@ def test_cylinder_side_face_and_rim():
         assert s.k2 == pytest.approx(math.cos(alpha) / (0.018 + 0.002 * math.cos(alpha)), rel=ALG_RTOL)
         assert abs(float(np.asarray(s.d1) @ [0, 1.0, 0])) < 1e-12  # meridian: in the (radial, z) plane
     assert cyl.curvature([0.02, 0, 0.05], [1.0, 0, 1e-7]).k2 == pytest.approx(50.0, rel=1e-6)
+    # the seam of side and rim (an engine's point at the end of a lying cylinder's bottom line): the
+    # torus at alpha = 0, the limit above; the side just inside the rim stays straight along the axis
+    seam = cyl.curvature([0.02, 0, 0.049], [1.0, 0, 0])
+    assert (seam.k1, seam.k2) == (500.0, 50.0) and abs(seam.d1[2]) == 1.0
+    inside = cyl.curvature([0.02, 0, 0.0479], [1.0, 0, 0])
+    assert (inside.k1, inside.k2) == (50.0, 0.0)
 
 
 def test_box_face_edge_corner_with_edge_radius():

@@ -31,6 +31,13 @@ def test_engines_doc_example_bounces_like_the_reference(capsys):
     assert v_in == pytest.approx(math.sqrt(2 * 9.81 * (0.3 - 0.02)), rel=1e-2)  # free fall to the floor
     want = simulate_impact(law, Body(ball, 0.02, 0.0312), Body.half_space(plate), v_in)
     assert first.cor_n == pytest.approx(want.cor_n, rel=ENGINE_COR_RTOL)
+    # what the doc says it prints, at the quoted precision: the first three bounces
+    quoted = re.search(r"the first three with COR ([0-9.]+) and tau ([0-9.]+)-([0-9.]+) ms",
+                       " ".join((ROOT / "docs" / "engines.md").read_text().split()))
+    assert quoted, "docs/engines.md: the sentence under the example changed"
+    assert {f"{r.cor_n:.3f}" for r in records[:3]} == {quoted.group(1)}
+    taus = [r.tau * 1e3 for r in records[:3]]
+    assert (f"{min(taus):.1f}", f"{max(taus):.1f}") == quoted.group(2, 3)
     # each bounce loses energy
     speeds = [r.inputs["v_n_in"] for r in records[:4]]
     assert all(b < a for a, b in zip(speeds, speeds[1:]))

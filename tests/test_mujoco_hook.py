@@ -288,9 +288,9 @@ def test_ant_rk4_steps_with_damped_armatured_joints_are_not_jumps():
 
 
 def test_ant_rk4_with_msf_contacts_is_not_interrupted():
-    """The same ant with MSF on every foot-floor pair, RK4 at 10 ms, 60 steps
-    of seeded torques (it lands at step ~19): no jump, no contact
-    interrupted, impacts recorded."""
+    """The same ant with MSF on every foot-floor pair, RK4 at 10 ms, 200
+    steps of seeded torques (it lands at step ~19): no jump, no contact
+    interrupted, impacts recorded (12 measured; every one interrupted before)."""
     model, data, pairs = _ant()
     adapter = MujocoAdapter(model, data, pairs)
     rng = np.random.default_rng(13)
@@ -300,8 +300,8 @@ def test_ant_rk4_with_msf_contacts_is_not_interrupted():
         # jumps are counted, not warned here
         warnings.simplefilter("ignore", ValidityWarning)
         warnings.simplefilter("error", RuntimeWarning)
-        for _ in range(60):
+        for _ in range(200):
             data.ctrl[:] = rng.uniform(lo, hi)
             mujoco.mj_step(model, data)
     assert adapter.jumps == 0 and adapter.interrupted == 0
-    assert len(adapter.records) >= 2
+    assert len(adapter.records) >= 6

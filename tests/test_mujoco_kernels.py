@@ -77,9 +77,11 @@ class _Replay:
     state after the step, the required pairs of before, and the answer the
     numpy path's call got."""
 
-    def __init__(self, real, required, out, settled):
+    def __init__(self, real, required, out, settled, before):
         self._real, self.required_pairs, self._out = real, required, out
         self.settled = settled  # which contacts took the settled path in the step before (the adapter's _lever)
+        # what the adapter's _held_geometry reads, as it was before the step
+        self.active, self.J, self.x, self.n_in, self.tau_est = before
         self.kin = None
 
     def step(self, kin):
@@ -107,8 +109,10 @@ class Shadow:
         ad, mgr = self.ad, self.ad.manager
         where = f"step {self.steps + 1}"
         required = np.array(mgr.required_pairs)
-        state = tuple(a.copy() for a in (ad._last_v, ad._last_dv, ad._have_last, ad._push, ad._x_last))
+        state = tuple(a.copy() for a in (ad._last_v, ad._last_dv, ad._have_last, ad._push, ad._x_last, ad._last_r,
+                                         ad._last_gap))
         settled = mgr.settled.copy()
+        before = tuple(a.copy() for a in (mgr.active, mgr.J, mgr.x, mgr.n_in, mgr.tau_est))
         seen = {}
         real_step = mgr.step
 
@@ -124,7 +128,8 @@ class Shadow:
         finally:
             ad.compiled = True
             del mgr.step
-        want_state = tuple(a.copy() for a in (ad._last_v, ad._last_dv, ad._have_last, ad._push))
+        want_state = tuple(a.copy() for a in (ad._last_v, ad._last_dv, ad._have_last, ad._push, ad._last_r,
+                                              ad._last_gap))
         want_fast, want_slow = ad._apply_fast, list(ad._apply)
         q_want = np.zeros(ad.model.nv)
         if want_fast is not None:
@@ -133,7 +138,8 @@ class Shadow:
             a[:] = b
         ad._push = state[3]  # the candidates' extra reach before the step (engines._contacts.islands.push_reach)
         ad._x_last[:] = state[4]  # the overlaps of the step before (the moving contact point's a_ext share)
-        replay = _Replay(mgr, required, seen["out"], settled)
+        ad._last_r[:], ad._last_gap[:] = state[5], state[6]  # sphere-sphere lever arms of the step before
+        replay = _Replay(mgr, required, seen["out"], settled, before)
         ad.manager = replay
         try:
             ad._compute_compiled()
@@ -143,6 +149,8 @@ class Shadow:
         for name, got, want in zip(("last_v", "last_dv"), (ad._last_v, ad._last_dv), want_state):
             _close(f"{where} {name}", got, want, KERNEL_RTOL)
         assert np.array_equal(ad._have_last, want_state[2])
+        assert np.array_equal(ad._last_gap, want_state[5])
+        _close(f"{where} last_r", ad._last_r, want_state[4], KERNEL_RTOL)
         assert (ad._apply_fast is None) == (want_fast is None), f"{where}: forces applied in one path only"
         q_got = np.zeros(ad.model.nv)
         if ad._apply_fast is not None:

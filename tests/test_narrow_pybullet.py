@@ -300,25 +300,53 @@ def test_sphere_closest_on_a_cylinder_against_pybullet():
 PB_GJK_ATOL = 3e-5
 
 
-def test_a_law_for_another_curvature_is_refused_naming_both_bodies():
-    axes = (0.03, 0.02, 0.02)
-    m = RUBBER.density * 4 / 3 * math.pi * 0.03 * 0.02 * 0.02
-    law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(0.02))
-    with pytest.raises(ValueError, match=r"pair \('body\d+/link0', 'body\d+/link0'\).*curvature.*build the law"):
-        drop(law, dict(kind=pb.GEOM_MESH, vertices=ellipsoid_vertices(axes).tolist()), m, m * 1e-4, 0.02 + 1e-4,
-             curvature=Ellipsoid(axes))
+def test_a_law_for_another_curvature_is_rebuilt_for_the_contact():
+    """A curvature per contact point (engines._narrow.LawBank): the pair's law
+    built for a 20 mm sphere, the ellipsoid lands on its long axis; the
+    contact gets the law for the tip's curvature, so the bounce is the
+    reference solver's with that curvature, as in MuJoCo."""
+    axes = (0.02, 0.02, 0.03)
+    m, inertia, tip_law = ellipsoid_case(axes)
+    wrong = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(0.02))
+    rec, ad = drop(wrong, dict(kind=pb.GEOM_MESH, vertices=ellipsoid_vertices(axes).tolist()), m, inertia,
+                   axes[2] + 1e-4, curvature=Ellipsoid(axes))
+    ref = simulate_impact(tip_law, Body(RUBBER, min(axes), m, inertia[0]), Body.half_space(STEEL), 1.0)
+    assert rel(rec.cor_n, ref.cor_n) < ACCEPT_RTOL and rel(rec.tau, ref.tau) < ACCEPT_RTOL
+    assert rel(rec.parameters["R_a"], tip_law.geom.R_a) < 1e-3 and ad.pairs[0].law is wrong
 
 
-def test_a_cylinder_lying_flat_is_refused_naming_both_bodies():
-    """Its side on a plane is a line contact: msf_contact has the law
-    (geometry.SideFootprint), the engines not yet; the message says so."""
+def test_a_cylinder_lying_flat_bounces_on_its_rim_points_without_energy_gain():
+    """Its side on a plane: the rim points at the two ends of the bottom line
+    (the seam of side and rim: the torus's 1/rho and 1/r, shapes.Cylinder),
+    each with the law for that curvature, as in MuJoCo; no energy gain."""
+    r, h, rho = 0.01, 0.03, 1e-3
+    m = RUBBER.density * math.pi * r * r * 2 * h
+    I = (m * (3 * r * r + 4 * h * h) / 12, m * (3 * r * r + 4 * h * h) / 12, m * r * r / 2)
+    law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(r))
+    c, u, plane = scene(dict(kind=pb.GEOM_CYLINDER, radius=r, height=2 * h), m, I, r + 1e-4,
+                        orn=pb.getQuaternionFromEuler([0, math.pi / 2, 0]))
+    try:
+        ad = PybulletAdapter(c, [PairSpec((u, -1), (plane, -1), law)], edge_radii={(u, -1): rho})
+        ad.step(200)
+        v, w = (np.array(a) for a in pb.getBaseVelocity(u, physicsClientId=c))
+        assert len(ad.records) >= 2
+        for rec in ad.records:
+            got = sorted((rec.parameters["R_a"], rec.parameters["R_b"]))
+            assert rel(got[0], rho) < 1e-3 and rel(got[1], r) < 1e-3
+        assert 0.5 * m * v @ v + 0.5 * w @ (np.array(I) * w) < 0.5 * m * 1.0 ** 2
+    finally:
+        pb.disconnect(c)
+
+
+def test_a_cylinder_on_its_flat_end_is_refused_naming_both_bodies():
+    """Its end face on a plane touches along the rim's top, a torus straight
+    along the rim there (a line around the face: no law in the engines);
+    refused naming both bodies, as in MuJoCo."""
     r, h = 0.01, 0.03
     m = RUBBER.density * math.pi * r * r * 2 * h
     law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(r))
-    with pytest.raises(ValueError, match=r"pair \('body\d+/link0', 'body\d+/link0'\).*line contact.*"
-                       r"built-in contact"):
-        drop(law, dict(kind=pb.GEOM_CYLINDER, radius=r, height=2 * h), m, m * 1e-4, r + 1e-4,
-             orn=pb.getQuaternionFromEuler([0, math.pi / 2, 0]))
+    with pytest.raises(ValueError, match=r"pair \('body\d+/link0', 'body\d+/link0'\).*built-in contact"):
+        drop(law, dict(kind=pb.GEOM_CYLINDER, radius=r, height=2 * h), m, m * 1e-4, h + 1e-4)
 
 
 def test_a_plane_as_body1_is_refused_saying_to_swap():

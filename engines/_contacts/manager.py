@@ -6,6 +6,7 @@ The algorithm: the package docstring (:mod:`engines._contacts`)."""
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from typing import Any, Callable
 
@@ -25,6 +26,12 @@ from .state import (
     L_G0, L_ON, L_W01, L_W11, L_XREF, NL, NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES,
     _dot, _name,
 )
+
+
+#: Gauss-Legendre nodes of :meth:`ContactManager.stored_energy`'s integral of
+#: the elastic force over the approach (x^(3/2) and linear laws: 1e-6 relative
+#: with 8; the msf k_p factor is smooth in x).
+STORED_ENERGY_NODES = 8
 
 
 class ContactManager(CompiledPath, NumpyPath, Records):
@@ -104,6 +111,8 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self._kcodes = np.array([self._kernel_law[g][0] for g in kgs], dtype=np.int64)
         self._kLC = np.array([self._kernel_law[g][1] for g in kgs], dtype=float).reshape(len(kgs), K.NLC)
         kidx = {g: j for j, g in enumerate(kgs)}
+        self._kidx = kidx  # law group -> its row in _kcodes/_kLC
+        self._slot_pos = {(i, int(self._group_of[i])): int(self._pos[i]) for i in range(P)}  # set_law
         self._kg_of_pair = np.array([kidx.get(g, -1) for g in self._group_of], dtype=np.int64)
         self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
         self._coupling: tuple[np.ndarray, Callable] | None = None  # set_coupling
@@ -339,6 +348,67 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             self._held_force[pair[held]] = out.force[held]
         return out
 
+    def stored_energy(self) -> float:
+        """Elastic energy held in the contacts in progress [J]: per contact the
+        work of the law's elastic normal force F_n(x, 0) from 0 to the internal
+        approach x (Gauss-Legendre, STORED_ENERGY_NODES nodes: exact for the
+        x^(3/2) and linear laws to round-off) plus k |s|^2 / 2 of the tangential
+        spring (the mean of its two axes' stiffness at x). Kinetic plus
+        potential energy plus this is what a contact conserves or dissipates:
+        a body in contact has part of its energy here."""
+        total = 0.0
+        nodes, weights = np.polynomial.legendre.leggauss(STORED_ENERGY_NODES)
+        for p in np.flatnonzero(self.active & (self.x > 0.0)).tolist():
+            g = self._group_of[p]
+            law = self._groups[g]
+            onset = {k: np.full(nodes.size, v[self._pos[p]]) for k, v in self._onset[g].items()}
+            x = float(self.x[p])
+            xi = 0.5 * x * (nodes + 1.0)
+            F = law.normal_force(xi, np.zeros_like(xi), onset)
+            total += 0.5 * x * float(weights @ F)
+            k, _ = law.tangential_stiffness(np.array([x]), {k: v[:1] for k, v in onset.items()})
+            total += 0.5 * float(np.mean(k)) * float(self.s[p] @ self.s[p])
+        return total
+
+    def set_law(self, pair_index: int, law: ForceLaw) -> None:
+        """Give pair ``pair_index`` the law ``law`` from its next onset on (a
+        curvature per contact point: an adapter whose narrow phase finds the
+        point where the pair's law was not built for, issue 13). Only between
+        contacts: a pair in contact keeps its law (ValueError); a finished
+        contact's record was made with its own law. The pair joins ``law``'s
+        group (created on first use, compiled when the kernel knows it)."""
+        p = int(pair_index)
+        if not 0 <= p < len(self.pairs):
+            raise ValueError(f"pair_index = {pair_index!r} is outside [0, {len(self.pairs) - 1}]")
+        if not isinstance(law, ForceLaw):
+            raise ValueError(f"law = {law!r} is not a msf_contact ForceLaw")
+        g = id(law)
+        if self._group_of[p] == g:
+            return
+        if self.active[p]:
+            raise ValueError(f"pair {p} is in contact: its law changes only between contacts")
+        if g not in self._groups:
+            self._groups[g] = law
+            self._onset[g] = {}
+            self._group_size[g] = 0
+            self._kernel_law[g] = kernel_law(law) if self.compiled else None
+            if self._kernel_law[g] is not None:
+                code, lc = self._kernel_law[g]
+                self._kcodes = np.append(self._kcodes, np.int64(code))
+                self._kLC = np.vstack([self._kLC, np.asarray(lc, dtype=float).reshape(1, K.NLC)])
+                self._kidx[g] = self._kcodes.size - 1
+        pos = self._slot_pos.get((p, g))
+        if pos is None:  # a new place in the group's onset arrays for this pair
+            pos = self._slot_pos[(p, g)] = self._group_size[g]
+            self._group_size[g] = pos + 1
+            store = self._onset[g]
+            for key in store:
+                store[key] = np.append(store[key], np.nan)
+        self._group_of[p] = g
+        self._pos[p] = pos
+        self._kg_of_pair[p] = self._kidx.get(g, -1)
+        self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
+        self.pairs[p] = dataclasses.replace(self.pairs[p], law=law)
     def _own_gaps(self, pair, x, n, v, a) -> np.ndarray:
         """The gaps (k,) [m] the step starts from: a pair not in contact that was
         a candidate in the last step (and that the adapter marks in ``own_gap``)

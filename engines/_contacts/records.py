@@ -185,6 +185,7 @@ class Records:
                 "internal_step": float(self.h[p]), "tau_estimate": float(self.tau_est[p]),
                 "x_max_overall": float(self.x_max[p]), "x_onset": float(self.x_onset[p]), "onset": onset,
                 "point": self.p_in[p].tolist(), "normal": self.n_in[p].tolist(),
+                "island": bool(self._island_contact[p]),  # began inside an island (engines._contacts.islands)
             },
             outside_validity=outside,
         )

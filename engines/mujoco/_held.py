@@ -12,14 +12,16 @@ frequency against the engine step,
 (M_dd the joint's diagonal of the joint-space inertia matrix, ``mj_fullM``
 at the adapter's construction; k in N m/rad or N/m).
 
-Measured (docs/engines.md, ``scripts/servo_sweep.py``): a 0.5 kg paddle on a
+Measured (docs/engines.md, ``.venv/bin/python scripts/held_links.py mujoco``): a 0.5 kg paddle on a
 hinge (M_dd = 6.7e-3 kg m^2) struck by a rubber ball (R = 20 mm, 2 m/s,
 contact 2.3-2.5 ms), kp = 1e2-1e5 N m/rad, dt = 0.2-2 ms, Euler, RK4 and
 implicitfast, first-bounce COR against the 0.1 ms run: within 2 % wherever
 omega dt <= 0.35; the first results outside 2 % are at omega dt = 0.38
 (kp 2000, 0.7 ms: +2.1 %), 0.47 (kp 3000: +3.1 %), 0.49 (kp 1e4, 0.4 ms:
--2.0 %); kp 1e4 reaches +14 % at omega dt = 1.2 and diverges (energy
-gained) beyond 2. A softer servo can stay within 2 % above the bound (kp
+-2.0 %); kp 1e4 reaches +14 % at omega dt = 1.2, kp 3e4 -37 % at 1.7,
+and kp 1e5 diverges from omega dt = 2.3 on (Euler: MuJoCo's own
+integration of the servo, unstable for omega dt > 2 without any contact;
+the run ends in a ValueError at a ~1500 m/s impact). A softer servo can stay within 2 % above the bound (kp
 1000: 1.9 % at omega dt = 0.77) because it moves the paddle little within
 the contact; the bound is the one that held for every kp measured.
 """
@@ -66,7 +68,7 @@ class Servo:
                 f"(kp = {self.kp:.4g}, joint stiffness = {self.stiffness:.4g}, M_dd = {self.M_dd:.4g}): "
                 f"omega = {self.omega:.4g} rad/s, omega dt = {self.omega * dt:.3g} > {SERVO_OMEGA_DT_MAX:g} at "
                 f"dt = {dt:g} s; the contact sees the servo one step late and its COR is not within 2 % "
-                f"(measured: +14 % at omega dt = 1.2, energy gained beyond 2): use dt <= dt_max = "
+                f"(measured: +14 % at omega dt = 1.2, a diverging servo from 2.3): use dt <= dt_max = "
                 f"{self.dt_max:.3g} s (model.opt.timestep), or a softer servo")
 
 

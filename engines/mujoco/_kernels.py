@@ -30,6 +30,8 @@ import math
 import numpy as np
 from numba import njit
 
+from engines._sweep import sweep_scalar
+
 # columns of gi (int64): geoms, bodies, the bodies' root bodies (subtree_com),
 # free joints and their first dofs, flags, pair index
 I_G1, I_G2, I_B1, I_B2, I_ROOT1, I_ROOT2, I_JNT1, I_JNT2, I_DOF1, I_DOF2, I_PLANE, I_FREE2, I_PAIR = range(13)
@@ -96,14 +98,22 @@ def _inverse_inertia(W, k, R, iI0, iI1, iI2, r0, r1, r2, inv_m, add):
 
 @njit(cache=True, error_model="numpy")
 def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, ximat, required,
-                    last_v, last_dv, have_last, dt, factor, coincident_rtol, push):
+                    last_v, last_dv, have_last, dt, factor, coincident_rtol, push, last_r, last_gap,
+                    hold, hold_n, hold_x):
     """Kinematics of every pair of the group and the rows of its candidates.
 
     gi, gf: the group's constants (module docstring); MjData arrays as they
     are; required (P,) bool; last_v, last_dv (P, 3), have_last (P,): the
     a_ext state, updated for every pair of the group; dt [s]; factor: the
     adapter's CANDIDATE_FACTOR; coincident_rtol: engines._geometry's; push
-    (P,) [m]: a pair's extra reach from its bodies' other contacts.
+    (P,) [m]: a pair's extra reach from its bodies' other contacts; last_r
+    (P, 6) [m], last_gap (P,) bool: a sphere-sphere pair's lever arms of the
+    last step (body 1's, body 2's contact point from its root's centre of
+    mass) and whether it was at a gap then (the adapter's ``_last_r``);
+    hold (P,) bool, hold_n (P, 3), hold_x (P,) [m]: a sphere-sphere contact
+    shorter than a step that is in progress or has a correction to remove
+    keeps the normal of its onset and the manager's approach (the adapter's
+    ``_held_geometry``).
 
     Returns (err, pair (n,), x (n,), normal, point, v_rel, v_com_rel (n, 3),
     W, W_com (n, 3, 3), a_ext (n, 3), p1, p2 (k, 3)): the n candidates in
@@ -161,6 +171,38 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
                     W_com[:0], a_ext[:0], p1, p2
             n0, n1, n2 = e0 / dist, e1 / dist, e2 / dist
             xx = R + R2 - dist
+            ph = gi[g, I_PAIR]
+            if hold[ph]:
+                m0, m1, m2 = hold_n[ph, 0], hold_n[ph, 1], hold_n[ph, 2]
+                xw = hold_x[ph]
+                xs[g] = xw
+                ns[g, 0], ns[g, 1], ns[g, 2] = m0, m1, m2
+                s1 = R - 0.5 * (xw if xw > 0.0 else 0.0)
+                s2 = R2 - 0.5 * (xw if xw > 0.0 else 0.0)
+                p1[g, 0], p1[g, 1], p1[g, 2] = c[0] - s1 * m0, c[1] - s1 * m1, c[2] - s1 * m2
+                p2[g, 0], p2[g, 1], p2[g, 2] = o[0] + s2 * m0, o[1] + s2 * m1, o[2] + s2 * m2
+                continue
+            if xx < 0.0:
+                # closing within the step: the geometry at first touch (engines._sweep), from the
+                # velocities of the two centres
+                b1, b2 = gi[g, I_B1], gi[g, I_B2]
+                r1c = subtree_com[gi[g, I_ROOT1]]
+                r2c = subtree_com[gi[g, I_ROOT2]]
+                f0, f1, f2 = c[0] - r1c[0], c[1] - r1c[1], c[2] - r1c[2]
+                h0, h1, h2 = o[0] - r2c[0], o[1] - r2c[1], o[2] - r2c[2]
+                w0 = ((cvel[b1, 3] + (cvel[b1, 1] * f2 - cvel[b1, 2] * f1))
+                      - (cvel[b2, 3] + (cvel[b2, 1] * h2 - cvel[b2, 2] * h1)))
+                w1 = ((cvel[b1, 4] + (cvel[b1, 2] * f0 - cvel[b1, 0] * f2))
+                      - (cvel[b2, 4] + (cvel[b2, 2] * h0 - cvel[b2, 0] * h2)))
+                w2 = ((cvel[b1, 5] + (cvel[b1, 0] * f1 - cvel[b1, 1] * f0))
+                      - (cvel[b2, 5] + (cvel[b2, 0] * h1 - cvel[b2, 1] * h0)))
+                sw, m0, m1, m2, xw = sweep_scalar(e0, e1, e2, w0, w1, w2, R + R2)
+                if sw:
+                    xs[g] = xw
+                    ns[g, 0], ns[g, 1], ns[g, 2] = m0, m1, m2
+                    p1[g, 0], p1[g, 1], p1[g, 2] = c[0] - R * m0, c[1] - R * m1, c[2] - R * m2
+                    p2[g, 0], p2[g, 1], p2[g, 2] = o[0] + R2 * m0, o[1] + R2 * m1, o[2] + R2 * m2
+                    continue
         xs[g] = xx
         ns[g, 0], ns[g, 1], ns[g, 2] = n0, n1, n2
         # Detection.of_sphere: body 1's surface point at the overlap's middle, body 2's across the gap
@@ -187,17 +229,31 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
         vr1 = (ua1 + (wa2 * d10 - wa0 * d12)) - (ub1 + (wb2 * d20 - wb0 * d22))
         vr2 = (ua2 + (wa0 * d11 - wa1 * d10)) - (ub2 + (wb0 * d21 - wb1 * d20))
         p = gi[g, I_PAIR]
+        xx = xs[g]
+        gap = not gi[g, I_PLANE] and xx < 0.0
         if have_last[p]:
-            a0 = (vr0 - last_v[p, 0] - last_dv[p, 0]) / dt
-            a1 = (vr1 - last_v[p, 1] - last_dv[p, 1]) / dt
-            a2 = (vr2 - last_v[p, 2] - last_dv[p, 2]) / dt
+            a0 = vr0 - last_v[p, 0] - last_dv[p, 0]
+            a1 = vr1 - last_v[p, 1] - last_dv[p, 1]
+            a2 = vr2 - last_v[p, 2] - last_dv[p, 2]
+            if gap and last_gap[p]:
+                # the points moved on the spheres (the adapter's _last_r): v_rel of the last step
+                # read at this step's points, with this step's spins
+                e10, e11, e12 = d10 - last_r[p, 0], d11 - last_r[p, 1], d12 - last_r[p, 2]
+                e20, e21, e22 = d20 - last_r[p, 3], d21 - last_r[p, 4], d22 - last_r[p, 5]
+                a0 -= (wa1 * e12 - wa2 * e11) - (wb1 * e22 - wb2 * e21)
+                a1 -= (wa2 * e10 - wa0 * e12) - (wb2 * e20 - wb0 * e22)
+                a2 -= (wa0 * e11 - wa1 * e10) - (wb0 * e21 - wb1 * e20)
+            a0, a1, a2 = a0 / dt, a1 / dt, a2 / dt
         else:
             a0, a1, a2 = gf[g, F_A0], gf[g, F_A0 + 1], gf[g, F_A0 + 2]
         last_v[p, 0], last_v[p, 1], last_v[p, 2] = vr0, vr1, vr2
         last_dv[p, 0], last_dv[p, 1], last_dv[p, 2] = 0.0, 0.0, 0.0
         have_last[p] = True
+        last_gap[p] = gap
+        if gap:
+            last_r[p, 0], last_r[p, 1], last_r[p, 2] = d10, d11, d12
+            last_r[p, 3], last_r[p, 4], last_r[p, 5] = d20, d21, d22
         n0, n1, n2 = ns[g, 0], ns[g, 1], ns[g, 2]
-        xx = xs[g]
         xd = -(vr0 * n0 + vr1 * n1 + vr2 * n2)
         xdd = -(a0 * n0 + a1 * n1 + a2 * n2)
         reach = factor * (_nonneg(xd) * dt + 0.5 * _nonneg(xdd) * dt * dt)  # closing_distance

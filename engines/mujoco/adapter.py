@@ -105,6 +105,7 @@ from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
 from engines._contacts.state import CENTRED_RTOL, lever_terms_free
 from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box, sphere_plane, sphere_sphere
+from engines._sweep import sweep
 from engines.base import (
     STEPS_PER_CONTACT_MIN,
     ContactForces,
@@ -147,7 +148,11 @@ _NARROW = ("sphere", "plane", "box", "capsule", "cylinder", "ellipsoid", "mesh")
 #: Points managed per geom pair from MuJoCo's narrow phase (its deepest ones
 #: when it lists more): a box face or a cylinder end on a plane gives 4, a
 #: capsule 2. A mesh is one smooth convex surface: its deepest point only
-#: (its vertices near the bottom are samples of one contact, not contacts).
+#: (its vertices near the bottom are samples of one contact, not contacts);
+#: a coarse hull whose vertices are contacts, as a box's corners are (the
+#: duck_vhacd.obj hull rolls from vertex to vertex: with one slot a new vertex
+#: already below the plane took the slot as a deep onset, COR 22 in a step),
+#: takes more through the adapter's ``mesh_slots``.
 NARROW_SLOTS = {"box": 4, "cylinder": 4, "capsule": 2}
 _ZERO3 = np.zeros(3)  # what body 2 may be; body 1 is a sphere
 
@@ -306,7 +311,8 @@ class _FreeGroup:
         gf[:, K.F_INVI2:K.F_INVI2 + 3] = np.where(self.free2[:, None], 1.0 / I2, 0.0)
         return gi, gf
 
-    def kinematics(self, m, d, dt, required, last_v, last_dv, have_last, push) -> dict:
+    def kinematics(self, m, d, dt, required, last_v, last_dv, have_last, push, last_r, last_gap, hold, hold_n,
+                   hold_x) -> dict:
         """Candidate rows of the group (a dict of ContactKinematics fields) and
         the a_ext bookkeeping of every pair of the group."""
         k = self.index.size
@@ -318,10 +324,40 @@ class _FreeGroup:
         cvel, com = d.cvel, d.subtree_com
         w1, w2 = cvel[self.b1, :3], cvel[self.b2, :3]  # a welded body's cvel is 0
         c1c, c2c = com[m.body_rootid[self.b1]], com[m.body_rootid[self.b2]]
-        v_rel = (cvel[self.b1, 3:] + cross_rows(w1, p1 - c1c)) - (cvel[self.b2, 3:] + cross_rows(w2, p2 - c2c))
+        held = ~self.plane & hold[self.index]
+        gap = np.flatnonzero(~self.plane & (x < 0.0) & ~held)
+        if np.any(held):  # a sub-step contact in progress: the normal of its onset (MujocoAdapter._held_geometry)
+            g = np.flatnonzero(held)
+            q = self.index[g]
+            x[g], nrm[g] = hold_x[q], hold_n[q]
+            s = 0.5 * np.maximum(x[g], 0.0)
+            p1[g] = c1[g] - (self.R1[g] - s)[:, None] * nrm[g]
+            p2[g] = d.geom_xpos[self.g2[g]] + (self.R2[g] - s)[:, None] * nrm[g]
+            point[g] = 0.5 * (p1[g] + p2[g])
+        if gap.size:  # spheres closing within the step: the geometry at first touch (engines._sweep)
+            c2 = d.geom_xpos[self.g2[gap]]
+            w = ((cvel[self.b1[gap], 3:] + cross_rows(w1[gap], c1[gap] - c1c[gap]))
+                 - (cvel[self.b2[gap], 3:] + cross_rows(w2[gap], c2 - c2c[gap])))
+            sw, n_sw, x_sw = sweep(c1[gap] - c2, w, self.R1[gap] + self.R2[gap])
+            g, n_sw, x_sw = gap[sw], n_sw[sw], x_sw[sw]
+            x[g], nrm[g] = x_sw, n_sw
+            p1[g] = c1[g] - self.R1[g][:, None] * n_sw
+            p2[g] = c2[sw] + self.R2[g][:, None] * n_sw
+            point[g] = 0.5 * (p1[g] + p2[g])
+        r1, r2 = p1 - c1c, p2 - c2c
+        v_rel = (cvel[self.b1, 3:] + cross_rows(w1, r1)) - (cvel[self.b2, 3:] + cross_rows(w2, r2))
         idx = self.index
-        a_ext = np.where(have_last[idx][:, None], (v_rel - last_v[idx] - last_dv[idx]) / dt, self.a0)
+        dv = v_rel - last_v[idx] - last_dv[idx]
+        gap = ~self.plane & (x < 0.0)
+        moved = gap & last_gap[idx] & have_last[idx]
+        if np.any(moved):  # last step's v_rel read at this step's points (the adapter's _last_r)
+            q = idx[moved]
+            dv[moved] -= (cross_rows(w1[moved], r1[moved] - last_r[q, :3])
+                          - cross_rows(w2[moved], r2[moved] - last_r[q, 3:]))
+        a_ext = np.where(have_last[idx][:, None], dv / dt, self.a0)
         last_v[idx], last_dv[idx], have_last[idx] = v_rel, 0.0, True
+        last_gap[idx] = gap
+        last_r[idx[gap], :3], last_r[idx[gap], 3:] = r1[gap], r2[gap]
         xd = -np.einsum("ij,ij->i", v_rel, nrm)
         xdd = -np.einsum("ij,ij->i", a_ext, nrm)
         reach = closing_distance(xd, xdd, dt, CANDIDATE_FACTOR)
@@ -421,7 +457,7 @@ class MujocoAdapter(EngineAdapter):
     name = "mujoco"
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, pairs: list[PairSpec], compiled: bool = True,
-                 edge_radii: dict | None = None):
+                 edge_radii: dict | None = None, mesh_slots: dict | None = None):
         if not isinstance(model, mujoco.MjModel) or not isinstance(data, mujoco.MjData):
             raise ValueError(f"model, data must be mujoco.MjModel and mujoco.MjData, got "
                              f"{type(model).__name__}, {type(data).__name__}")
@@ -432,6 +468,11 @@ class MujocoAdapter(EngineAdapter):
         self._own_on: set[tuple[int, int]] = set()  # geom pairs MuJoCo would collide (no <exclude>)
         #: edge radius [m] per box or cylinder geom name (msf_contact.shapes.DEFAULT_EDGE_RADIUS otherwise)
         self.edge_radii = dict(edge_radii or {})
+        #: contact points managed per mesh geom name (default 1: a smooth mesh; NARROW_SLOTS)
+        self.mesh_slots = dict(mesh_slots or {})
+        for name, k in self.mesh_slots.items():
+            if int(k) != k or not 1 <= k <= 8:
+                raise ValueError(f"mesh_slots[{name!r}] = {k!r} must be a whole number in [1, 8]")
         self._narrow_pairs: list = []  # per narrow geom pair: (geom1, geom2, shape1, shape2, SlotMatcher)
         self._pairs = []
         expanded = []
@@ -446,7 +487,10 @@ class MujocoAdapter(EngineAdapter):
             self._narrow = NarrowPhase(model, [(g1, g2) for g1, g2, *_ in self._narrow_pairs])
             self._narrow_key = None
             self._narrow_found: list = []
-            self._narrow_checked = np.zeros(len(self._pairs), bool)
+            from engines._narrow import LawBank
+
+            #: a law per contact curvature, built from the PairSpec's (engines._narrow.LawBank, _narrow_law)
+            self.laws = LawBank()
         super().__init__(expanded)
         nv = model.nv
         self._jac = np.zeros((3, nv))
@@ -472,7 +516,15 @@ class MujocoAdapter(EngineAdapter):
         self._last_v = np.zeros((P, 3))
         self._last_dv = np.zeros((P, 3))
         self._have_last = np.zeros(P, bool)
+        # a sphere-sphere pair at a gap: its lever arms (body 1's, body 2's contact point from the
+        # root's centre of mass) [m] (P, 6) at the last step, and whether it was at a gap then: the
+        # points move on the spheres as the line of first touch turns (engines._sweep), and v_rel
+        # of the last step is read at this step's points for a_ext
+        self._last_r = np.zeros((P, 6))
+        self._last_gap = np.zeros(P, bool)
         self._fast = _FreeGroup.of(model, [p for p in self._pairs if _vectorisable(model, p)])
+        self._pp = np.zeros(P, bool)  # the free group's sphere-sphere pairs (_held_geometry)
+        self._pp[self._fast.index[~self._fast.plane]] = True
         self._is_fast = np.zeros(P, bool)
         self._is_fast[self._fast.index] = True
         self.manager.own_gap[:] = self._is_fast  # free spheres: the manager's gaps are second order (_own_gaps)
@@ -587,7 +639,9 @@ class MujocoAdapter(EngineAdapter):
                 verts = m.mesh_vert[int(m.mesh_vertadr[k]):int(m.mesh_vertadr[k]) + int(m.mesh_vertnum[k])]
             shapes.append(make_shape(t, m.geom_size[g], edge_radius=self.edge_radii.get(m.geom(g).name),
                                      vertices=verts))
-        n_slots = max(NARROW_SLOTS.get(t1, 1), NARROW_SLOTS.get(t2, 1) if t2 != "plane" else 1)
+        slots = [NARROW_SLOTS.get(t, 1) if t != "mesh" else int(self.mesh_slots.get(m.geom(g).name, 1))
+                 for g, t in ((g1, t1), (g2, t2))]
+        n_slots = max(slots[0], slots[1] if t2 != "plane" else 1)
         k = len(self._narrow_pairs)
         self._narrow_pairs.append((g1, g2, shapes[0], shapes[1], SlotMatcher(n_slots, float(m.geom_rbound[g1]))))
         return [_Pair(first + s, g1, g2, b1, b2, "narrow", float(m.geom_rbound[g1]), fixed1, fixed2, k, s)
@@ -945,16 +999,14 @@ class MujocoAdapter(EngineAdapter):
         return out
 
     def _narrow_detection(self, p: _Pair) -> Detection:
-        """Detection of narrow pair p's slot from MuJoCo's narrow phase; at a
-        contact's onset the law's curvature is checked against the contact's
-        (engines._narrow.contact_curvature); a slot MuJoCo no longer lists is
-        a gap beyond the detection margin."""
-        from engines._narrow import check_contact_law
+        """Detection of narrow pair p's slot from MuJoCo's narrow phase; until
+        the contact's onset the slot's law follows the curvature at its point
+        (:meth:`_narrow_law`); a slot MuJoCo no longer lists is a gap beyond
+        the detection margin."""
 
         d = self.data
         found = self._narrow_points()[p.narrow][p.slot]
         if found is None:  # beyond the detection margin: a gap larger than a step can close
-            self._narrow_checked[p.index] = False
             x, point, n = -1.0, d.geom_xpos[p.geom1].copy(), np.array([0.0, 0.0, 1.0])
             det = Detection(np.array([x]), n[None], point[None], point[None], point[None],
                             np.full((1, 2), math.inf), np.full((1, 2), math.inf))
@@ -964,14 +1016,25 @@ class MujocoAdapter(EngineAdapter):
         p1, p2 = point + half * n, point - half * n
         det = Detection(np.array([x]), n[None].copy(), point[None].copy(), p1[None], p2[None],
                         np.full((1, 2), math.inf), np.full((1, 2), math.inf))
-        if not self.manager.active[p.index] and not self._narrow_checked[p.index]:  # about to touch
-            g1, g2, s1, s2, _ = self._narrow_pairs[p.narrow]
-            spec = self.pairs[p.index]
-            check_contact_law((spec.body1, spec.body2), spec.law.curvature,
-                              s1, (d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3)),
-                              s2, (d.geom_xpos[g2], d.geom_xmat[g2].reshape(3, 3)), point, n, float(d.time))
-            self._narrow_checked[p.index] = True
+        if not self.manager.active[p.index]:  # about to touch: the law for the curvature there
+            self._narrow_law(p, point, n)
         return det
+
+    def _narrow_law(self, p: _Pair, point, n) -> None:
+        """Give narrow pair p's slot the law for the curvature of both surfaces
+        at ``point`` (normal ``n``) before its onset (engines._narrow.LawBank:
+        the PairSpec's law if it fits, else the same law for this curvature;
+        issue 13). A contact no law here can carry (a line contact, two flat
+        faces) raises ValueError naming both geoms and what to do."""
+        from engines._narrow import contact_law
+
+        d = self.data
+        g1, g2, s1, s2, _ = self._narrow_pairs[p.narrow]
+        spec = self.pairs[p.index]
+        law = contact_law((spec.body1, spec.body2), spec.law, self.laws,
+                          s1, (d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3)),
+                          s2, (d.geom_xpos[g2], d.geom_xmat[g2].reshape(3, 3)), point, n, float(d.time))
+        self.manager.set_law(p.index, law)
 
     def _jacobian(self, body: int, point, out) -> np.ndarray:
         if int(self.model.body_weldid[body]) == 0:
@@ -1004,7 +1067,8 @@ class MujocoAdapter(EngineAdapter):
         blocks = []
         W_fast = None
         if self._fast.index.size:
-            blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last, self._push)
+            blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last, self._push,
+                                        self._last_r, self._last_gap, *self._held_geometry(required))
             W_fast = blk
             self._p1[self._fast.index], self._p2[self._fast.index] = blk["p1_all"], blk["p2_all"]
             blocks.append(blk["rows"])
@@ -1061,7 +1125,8 @@ class MujocoAdapter(EngineAdapter):
         if f.index.size:
             err, pair, x, nrm, point, v_rel, v_com, W, W_com, a_ext, p1, p2 = K.free_kinematics(
                 self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat, required,
-                self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push)
+                self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push,
+                self._last_r, self._last_gap, *self._held_geometry(required))
             if err != K.ERR_NONE:
                 for _ in f._detect(d, d.geom_xpos[f.g1]):  # the numpy detection says what is wrong
                     pass
@@ -1123,6 +1188,19 @@ class MujocoAdapter(EngineAdapter):
         """I^-1 = R diag(1/I) R^T in world axes (k, 3, 3) of the bodies b (k,)."""
         R = self.data.ximat[b].reshape(-1, 3, 3)
         return (R * (1.0 / self.model.body_inertia[b])[:, None, :]) @ R.transpose(0, 2, 1)
+
+    def _held_geometry(self, required: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(hold (P,) bool, normal (P, 3), x (P,) [m]): the sphere-sphere pairs of the free group
+        whose contact is shorter than a step (the manager's duration estimate) and is in progress
+        or has a timing correction to remove keep the normal of its onset (the normal of first
+        touch, engines._sweep) and the manager's own approach. The engine has moved both spheres
+        by a whole step's travel meanwhile (two beads passing at 30 m/s: 3 mm in 0.1 ms, 12
+        radii), so its line of centres is no normal for them: a contact that straddled a step
+        start read it (cor_n 0.979 instead of 0.993), and the correction of a contact inside one
+        step was taken back at its point, with the wrong angular impulse (spin 10 % low)."""
+        mgr = self.manager
+        hold = self._pp & required & (mgr.tau_est < self.timestep) & (mgr.active | np.any(mgr.J != 0.0, axis=1))
+        return hold, mgr.n_in, mgr.x
 
     def _lever(self, kin: ContactKinematics) -> np.ndarray | None:
         """The moving contact point of the free group's rows (engines._contacts.state.LEVER_DOC,
@@ -1341,6 +1419,42 @@ class MujocoAdapter(EngineAdapter):
                 self._last_dv[f.index[sel]] = f.velocity_change(d, dq, blk, sel)
         for i, J in jacs:
             self._last_dv[i] = J @ dq
+
+    def velocity_offset(self) -> np.ndarray:
+        """What the pending timing corrections add to ``data.qvel`` (nv,)
+        (engines._contacts: an impulse pair J, -J over two steps; for one step
+        after a contact step the engine's velocities carry M^-1 J_p^T J). The
+        physical velocities are ``data.qvel - adapter.velocity_offset()``:
+        read energies and momenta from those (the positions are already where
+        the impulse's timing puts them). Zeros when no correction is pending.
+        Computed on a private MjData at the current qpos, each body's Jacobian
+        at the point of the step that applied the correction."""
+        m = self.model
+        on = np.flatnonzero(np.any(self.manager.J != 0.0, axis=1))
+        out = np.zeros(m.nv)
+        if on.size == 0:
+            return out
+        if getattr(self, "_scratch", None) is None:
+            self._scratch = mujoco.MjData(m)
+        s = self._scratch
+        s.qpos[:] = self.data.qpos
+        if m.nmocap:
+            s.mocap_pos[:], s.mocap_quat[:] = self.data.mocap_pos, self.data.mocap_quat
+        mujoco.mj_kinematics(m, s)
+        mujoco.mj_comPos(m, s)
+        mujoco.mj_makeM(m, s)
+        mujoco.mj_factorM(m, s)
+        Q = np.zeros(m.nv)
+        jac = np.zeros((3, m.nv))
+        for i in on.tolist():
+            p = self._pairs[i]
+            for body, point, sign in ((p.body1, self._p1[i], 1.0), (p.body2, self._p2[i], -1.0)):
+                if int(m.body_weldid[body]) != 0:
+                    mujoco.mj_jac(m, s, jac, None, point, body)
+                    Q += sign * (jac.T @ self.manager.J[i])
+        dq = np.zeros((1, m.nv))
+        mujoco.mj_solveM(m, s, dq, Q.reshape(1, -1))
+        return dq[0]
 
     def _angular_velocity(self, body: int) -> np.ndarray:
         res = np.zeros(6)

@@ -6,9 +6,11 @@ return one :class:`engines.base.PairSpec` per (geom, floor) with a law
 built for the curvature MuJoCo's narrow phase will report there: a sphere
 its radius, a capsule the sphere of its radius (MuJoCo reports a capsule on
 a plane as its segment's end spheres), a box the sphere of its edge radius
-(its corners). Other geoms (ellipsoids, cylinders, meshes: their curvature
-at the floor changes with the pose, and the engines keep one law per pair)
-are refused naming the geom and the floor.
+(its corners). Other geoms (ellipsoids, cylinders, meshes) get a law for
+their bounding sphere, which the adapter replaces at each contact by the
+law for the curvature there (engines._narrow.LawBank; a contact no law can
+carry, such as a cylinder standing on its flat end, is refused at run time
+naming both geoms).
 """
 
 from __future__ import annotations
@@ -71,10 +73,8 @@ def load_with_msf_floor(path: str, pair: ContactPair, *, law: str = "msf", edge_
             R = float(model.geom_size[g, 0])
         elif t == mujoco.mjtGeom.mjGEOM_BOX:
             R = min(edge_radius, float(min(model.geom_size[g, :3])))
-        else:
-            raise ValueError(f"pair ({name!r}, {FLOOR!r}): a {mujoco.mjtGeom(t).name[7:].lower()} shows the floor a "
-                             "curvature that changes with its pose, and the engines keep one law per pair: give it "
-                             "the built-in contact (leave it out of the MSF pairs)")
+        else:  # a placeholder: the adapter gives each contact the law for its point's curvature (LawBank)
+            R = float(model.geom_rbound[g])
         if R not in laws:
             laws[R] = make_law(law, pair, Curvature.sphere_on_plane(R), **law_options)
         pairs.append(PairSpec(name, FLOOR, laws[R]))
@@ -83,15 +83,28 @@ def load_with_msf_floor(path: str, pair: ContactPair, *, law: str = "msf", edge_
     return model, data, pairs
 
 
-def mechanical_energy(model: mujoco.MjModel, data: mujoco.MjData) -> float:
-    """Kinetic plus gravitational potential energy [J] (``mj_energyPos`` and
-    ``mj_energyVel`` with the energy flag on)."""
+def mechanical_energy(model: mujoco.MjModel, data: mujoco.MjData, qvel=None) -> float:
+    """Kinetic plus gravitational potential energy [J] at the current qpos
+    and ``qvel`` (default ``data.qvel``; with MSF pass ``data.qvel -
+    adapter.velocity_offset()``, the physical velocities), both of the same
+    instant: ``mj_energyPos`` and ``mj_energyVel`` on a private MjData after
+    ``mj_kinematics``, ``mj_comPos`` and ``mj_makeM`` (after ``mj_step``,
+    ``data``'s own derived quantities are those of the step's start, so its
+    potential energy would belong to the last state and the kinetic to this one)."""
+    s = mujoco.MjData(model)
+    s.qpos[:] = data.qpos
+    s.qvel[:] = data.qvel if qvel is None else qvel
+    if model.nmocap:
+        s.mocap_pos[:], s.mocap_quat[:] = data.mocap_pos, data.mocap_quat
+    mujoco.mj_kinematics(model, s)
+    mujoco.mj_comPos(model, s)
+    mujoco.mj_makeM(model, s)
     flags = model.opt.enableflags
     model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     try:
-        mujoco.mj_energyPos(model, data)
-        mujoco.mj_energyVel(model, data)
-        return float(data.energy[0] + data.energy[1])
+        mujoco.mj_energyPos(model, s)
+        mujoco.mj_energyVel(model, s)
+        return float(s.energy[0] + s.energy[1])
     finally:
         model.opt.enableflags = flags
 

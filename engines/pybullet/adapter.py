@@ -116,6 +116,12 @@ CANDIDATE_FACTOR = 2.0
 #: warned about, dt_max = tau / HELD_MIN_STEPS (docs/engines.md).
 HELD_MIN_STEPS = 4.0
 
+#: A joint within this of a limit of its range [rad or m] is held there by
+#: pybullet's limit constraint: the contact's inverse inertia treats it as
+#: locked (PybulletAdapter._minv). pybullet lets a loaded joint sit slightly
+#: beyond its limit; 1e-3 rad is far below a joint's travel in one step.
+JOINT_LIMIT_TOL = 1e-3
+
 _SHAPE_NAMES = {pb.GEOM_SPHERE: "sphere", pb.GEOM_BOX: "box", pb.GEOM_CAPSULE: "capsule",
                 pb.GEOM_CYLINDER: "cylinder", pb.GEOM_PLANE: "plane", pb.GEOM_MESH: "mesh",
                 pb.GEOM_HEIGHTFIELD: "heightfield"}
@@ -281,7 +287,7 @@ class PybulletAdapter(EngineAdapter):
         # is its slot, the links of one multibody share one key, a fixed body has none (-1)
         B = len(self._body_list)
         key = np.where(self._b_free, np.arange(B), -1)
-        key = np.where(self._b_link, B + self._b_uid, key)
+        key = np.where(self._b_art, B + self._b_uid, key)
         self._keys = key[self._slot].astype(np.int64)
         self._push = np.full(n, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
         self._cur_bodies: _Bodies | None = None
@@ -304,13 +310,19 @@ class PybulletAdapter(EngineAdapter):
         self.edge_handoffs = 0
         self.edge_handoffs_of: dict[int, int] = {}
         self._held_warned: set[int] = set()  # held pairs warned about a too coarse step (_flag_held)
+        self._mb_cache: dict = {}  # per step: a multibody's joint state and inverse mass matrix (_multibody)
+        self._movable: dict[int, list[int]] = {}  # a multibody's movable joints
+        self._limits: dict[int, np.ndarray] = {}  # their (lower, upper) limits [rad or m]
         #: pairs seen in contact while a motor on one of their links' joint chains acted
         #: (appliedJointMotorTorque != 0; pybullet cannot report the motor settings): pair -> joint
         self._motor_held: dict[int, str] = {}
         self._chains: dict[int, list[tuple[int, int]]] = {}  # pair -> [(body uid, joint)] of its links' chains
         # the narrow pairs' points of this step, per slot (x, point, normal) or None (beyond the reach)
         self._narrow_found: list = [None] * n
-        self._narrow_checked = np.zeros(n, bool)  # the slot's curvature was checked against its law
+        from engines._narrow import LawBank
+
+        #: a law per contact curvature, built from the PairSpec's (engines._narrow.LawBank, _narrow_slot)
+        self.laws = LawBank()
 
     # -- validation ---------------------------------------------------------
     def _check_body(self, b, label):
@@ -328,9 +340,6 @@ class PybulletAdapter(EngineAdapter):
         nj = pb.getNumJoints(uid, physicsClientId=c)
         if not -1 <= link < nj:
             raise ValueError(f"{label}: link index {link} is outside [-1, {nj - 1}] of body {uid}")
-        if nj > 0 and not self._base_fixed(uid):
-            raise ValueError(f"{label}: body {uid} is a floating-base multibody with joints; links of fixed-base "
-                             "multibodies and free single bodies are supported")
         return uid, link
 
     def _body_name(self, b) -> str:
@@ -363,7 +372,11 @@ class PybulletAdapter(EngineAdapter):
         slot = {b: j for j, b in enumerate(body_list)}
         self._slot = np.array([[slot[b1], slot[b2]] for b1, b2 in self._bodies], int).reshape(-1, 2)
         B = len(body_list)
-        self._b_link = np.array([b[1] >= 0 for b in body_list], bool).reshape(B)
+        self._b_link = np.array([b[1] >= 0 for b in body_list], bool).reshape(B)  # read with getLinkState
+        #: moved through the multibody's joints (a link, or the floating base of a multibody with joints):
+        #: W = J M^-1 J^T from calculateJacobian and calculateMassMatrix
+        self._b_art = np.array([self._articulated(b) for b in body_list], bool).reshape(B)
+        self._art_slots = np.flatnonzero(self._b_art).tolist()
         self._base_slots = np.flatnonzero(~self._b_link)
         self._base_uids = [body_list[j][0] for j in self._base_slots]
         self._link_slots = np.flatnonzero(self._b_link).tolist()
@@ -371,12 +384,12 @@ class PybulletAdapter(EngineAdapter):
         self._b_inv_m = np.zeros(B)
         self._b_inv_I = np.zeros((B, 3))  # principal inverse inertia [1/(kg m^2)]
         for j, b in enumerate(body_list):
-            if not self._b_fixed[j] and not self._b_link[j]:
+            if not self._b_fixed[j] and not self._b_art[j]:
                 info = pb.getDynamicsInfo(b[0], b[1], physicsClientId=c)
                 self._b_inv_m[j] = 1.0 / info[0]
                 I = np.asarray(info[2], float)
                 self._b_inv_I[j] = np.where(I > 0, 1.0 / np.where(I > 0, I, 1.0), 0.0)
-        self._b_free = ~self._b_fixed & ~self._b_link
+        self._b_free = ~self._b_fixed & ~self._b_art
         # pybullet clamps every coordinate speed of a multibody, a base's spin included, at
         # changeDynamics(maxJointVelocity) (btMultiBody::m_maxCoordinateVelocity, 100 rad/s by
         # default in 3.2.x; measured: a torque impulse for 1,000 rad/s leaves 100 rad/s). A bead
@@ -438,7 +451,19 @@ class PybulletAdapter(EngineAdapter):
         return _Bodies(com, self._k.rotations(q) if self.compiled else _mats(q), v, w, frame)
 
     def _articulated(self, b):
-        return b[1] >= 0
+        """A link of a multibody, or the base of a floating-base multibody with
+        joints. A floating multibody whose joints are all fixed is refused:
+        pybullet's calculateJacobian needs a movable joint."""
+        c = self.client
+        nj = pb.getNumJoints(b[0], physicsClientId=c)
+        if nj and not self._base_fixed(b[0]) and all(pb.getJointInfo(b[0], j, physicsClientId=c)[2] == pb.JOINT_FIXED
+                                                     for j in range(nj)):
+            raise ValueError(f"body {b[0]} is a floating multibody whose {nj} joints are all fixed: pybullet's "
+                             "calculateJacobian (the contact's inverse inertia) needs a movable joint; make it one "
+                             "body with a compound collision shape, or leave it to pybullet's own contact")
+        if b[1] >= 0:
+            return True
+        return nj > 0 and not self._fixed(b)
 
     def _link_key(self, k, what) -> tuple[int, int]:
         try:
@@ -705,12 +730,58 @@ class PybulletAdapter(EngineAdapter):
         return _Pose(np.asarray(pos, float), _mat(orn), np.asarray(v, float), np.asarray(w, float),
                      np.asarray(frame, float))
 
+    def _multibody(self, uid) -> list:
+        """[q, qd, M^-1 or None] of a multibody's movable joints at this step
+        (read once per step: a robot's contacts share them)."""
+        cache = self._mb_cache
+        if cache.get("step") != self._steps:
+            cache.clear()
+            cache["step"] = self._steps
+        if uid not in cache:
+            c = self.client
+            if uid not in self._movable:
+                self._movable[uid] = [j for j in range(pb.getNumJoints(uid, physicsClientId=c))
+                                      if pb.getJointInfo(uid, j, physicsClientId=c)[2] != pb.JOINT_FIXED]
+            states = pb.getJointStates(uid, self._movable[uid], physicsClientId=c) if self._movable[uid] else []
+            cache[uid] = [[s[0] for s in states], [s[1] for s in states], None]
+        return cache[uid]
+
     def _joint_state(self, uid):
+        q, qd, _ = self._multibody(uid)
+        return q, qd
+
+    def _minv(self, uid) -> np.ndarray:
+        """The multibody's inverse inertia in joint space at this step (cached):
+        M^-1, with the joints at or beyond a limit (JOINT_LIMIT_TOL) held
+        (M^-1 - M^-1 A^T (A M^-1 A^T)^-1 A M^-1, A the rows of those dofs):
+        pybullet holds a joint at its limit with a rigid constraint inside the
+        step, so a contact on a link beyond it moves what the held joint lets
+        move (measured: a foot of pybullet_data's ant with its ankle at the
+        limit moved 10-30 % less than J M^-1 J^T said; with the limit held,
+        or the joint inside its range, J M^-1 J^T P dt is the velocity change
+        pybullet gives to 1e-7 m/s)."""
+        mb = self._multibody(uid)
+        if mb[2] is None:
+            Minv = np.linalg.inv(self._mass_matrix(uid))
+            held = self._held_dofs(uid, mb[0])
+            if held.size:
+                MA = Minv[:, held]
+                Minv = Minv - MA @ np.linalg.solve(Minv[np.ix_(held, held)], MA.T)
+            mb[2] = Minv
+        return mb[2]
+
+    def _held_dofs(self, uid, q) -> np.ndarray:
+        """Columns of the mass matrix (a floating base's 6 first) of the movable
+        joints at or beyond a limit of their range (JOINT_LIMIT_TOL)."""
         c = self.client
-        movable = [j for j in range(pb.getNumJoints(uid, physicsClientId=c))
-                   if pb.getJointInfo(uid, j, physicsClientId=c)[2] != pb.JOINT_FIXED]
-        states = pb.getJointStates(uid, movable, physicsClientId=c)
-        return [s[0] for s in states], [s[1] for s in states]
+        if uid not in self._limits:
+            info = [pb.getJointInfo(uid, j, physicsClientId=c) for j in self._movable[uid]]
+            self._limits[uid] = np.array([[i[8], i[9]] for i in info], float).reshape(-1, 2)
+        lim = self._limits[uid]
+        q = np.asarray(q, float)
+        on = (lim[:, 0] < lim[:, 1]) & ((q <= lim[:, 0] + JOINT_LIMIT_TOL) | (q >= lim[:, 1] - JOINT_LIMIT_TOL))
+        base = 0 if self._base_fixed(uid) else 6
+        return np.flatnonzero(on) + base
 
     def _jacobian(self, b, pose, point):
         """Translational Jacobian (3, ndof) of the material point of link b at ``point``."""
@@ -746,7 +817,7 @@ class PybulletAdapter(EngineAdapter):
         Wc = np.zeros((3, 3))
         if art1 and art2 and b1[0] == b2[0]:
             # two links of one chain: J = J1 - J2 over the shared coordinates
-            Minv = np.linalg.inv(self._mass_matrix(b1[0]))
+            Minv = self._minv(b1[0])
             J = self._jacobian(b1, poses[0], point) - self._jacobian(b2, poses[1], point)
             Jc1 = self._jacobian(b1, poses[0], poses[0].com)
             Jc2 = self._jacobian(b2, poses[1], poses[1].com)
@@ -754,7 +825,7 @@ class PybulletAdapter(EngineAdapter):
         # +P on body 1 and -P on body 2: both bodies' terms add to the relative change
         for b, pose in ((b1, poses[0]), (b2, poses[1])):
             if self._articulated(b):
-                Minv = np.linalg.inv(self._mass_matrix(b[0]))
+                Minv = self._minv(b[0])
                 J = self._jacobian(b, pose, point)
                 Jc = self._jacobian(b, pose, pose.com)
                 W += J @ Minv @ J.T
@@ -845,23 +916,21 @@ class PybulletAdapter(EngineAdapter):
 
     def _narrow_slot(self, i, poses):
         """(x, n, point) of narrow slot i from this step's points; a slot
-        without a point is far (x = -1 m, as the MuJoCo adapter). At a
-        contact's onset the law's curvature is checked against the contact's
-        (engines._narrow.check_contact_law)."""
-        from engines._narrow import check_contact_law
+        without a point is far (x = -1 m, as the MuJoCo adapter). Until the
+        contact's onset the slot's law follows the curvature at its point
+        (engines._narrow.contact_law: a law per contact point)."""
+        from engines._narrow import contact_law
 
         found = self._narrow_found[i]
         if found is None:
-            self._narrow_checked[i] = False
             return -1.0, np.array([0.0, 0.0, 1.0]), poses[0].com.copy()
         x, point, n = found
-        if not self.manager.active[i] and not self._narrow_checked[i]:
+        if not self.manager.active[i]:
             np_ = self._narrow[self._narrow_of[i][0]]
             pose1 = self._world_shape(np_.shape1, poses[0])
             pose2 = self._world_shape(np_.shape2, poses[1])
-            check_contact_law(self.pair_names[i], self.pairs[i].law.curvature, np_.geom1, pose1, np_.geom2, pose2,
-                              point, n, self.time)
-            self._narrow_checked[i] = True
+            self.manager.set_law(i, contact_law(self.pair_names[i], self.pairs[i].law, self.laws, np_.geom1, pose1,
+                                                np_.geom2, pose2, point, n, self.time))
         return x, n.copy(), point.copy()
 
     def _closing_bound(self, i, poses, grav) -> float:
@@ -1021,7 +1090,7 @@ class PybulletAdapter(EngineAdapter):
         g0 (max(x, 0) - max(x_last, 0))/dt, which the manager now integrates itself (d' g)."""
         pair = np.asarray(kin.pair, int)
         j1, j2 = self._slot[pair, 0], self._slot[pair, 1]
-        live = ~self.manager.settled[pair] & ~self._b_link[j1] & ~self._b_link[j2] & (
+        live = ~self.manager.settled[pair] & ~self._b_art[j1] & ~self._b_art[j2] & (
             self._b_free[j1] | self._b_free[j2])
         xpos = np.maximum(np.asarray(kin.x, dtype=float), 0.0)
         x_last = self._x_last[pair]
@@ -1061,7 +1130,7 @@ class PybulletAdapter(EngineAdapter):
             dv = np.zeros(3)
             for side, sign in ((0, 1.0), (1, -1.0)):
                 j = int(self._slot[i, side])
-                if not self._b_free[j] or self._b_link[j]:
+                if not self._b_free[j] or self._b_art[j]:
                     continue
                 pb.applyExternalTorque(int(self._b_uid[j]), -1, tq.tolist(), world, c)
                 R = bodies.rot[j]
@@ -1108,8 +1177,9 @@ class PybulletAdapter(EngineAdapter):
         signs s = +1 (body 1) or -1 (body 2) and lever arms r from its centre
         of mass to each pair's contact point, W_pq += s_p s_q (1/m - [r_p]x
         I^-1 [r_q]x) and Wc_pq += s_p s_q / m (the centre of mass does not
-        turn). (b, 3, 3) each [1/kg]. A multibody's links are not coupled here
-        (only through a_ext: docs/engines.md)."""
+        turn); for links of one multibody (a robot's feet), s_p s_q J_p M^-1 J_q^T
+        and s_p s_q J_c,p M^-1 J_q^T through its Jacobians and mass matrix.
+        (b, 3, 3) each [1/kg]."""
         bodies = self._cur_bodies
         W = np.zeros((pp.size, 3, 3))
         Wc = np.zeros((pp.size, 3, 3))
@@ -1118,16 +1188,24 @@ class PybulletAdapter(EngineAdapter):
             for sq, gq in ((0, 1.0), (1, -1.0)):
                 jp, jq = self._slot[pp, sp], self._slot[pq, sq]
                 on = (jp == jq) & self._b_free[jp]
-                if not np.any(on):
-                    continue
-                j = jp[on]
-                R = bodies.rot[j]
-                Iinv = (R * self._b_inv_I[j][:, None, :]) @ R.transpose(0, 2, 1)
-                rp = _skew(self._pt[pp[on]] - bodies.com[j])
-                rq = _skew(self._pt[pq[on]] - bodies.com[j])
-                inv_m = self._b_inv_m[j][:, None, None]
-                W[on] += gp * gq * (inv_m * eye - rp @ Iinv @ rq)
-                Wc[on] += gp * gq * inv_m * eye
+                if np.any(on):
+                    j = jp[on]
+                    R = bodies.rot[j]
+                    Iinv = (R * self._b_inv_I[j][:, None, :]) @ R.transpose(0, 2, 1)
+                    rp = _skew(self._pt[pp[on]] - bodies.com[j])
+                    rq = _skew(self._pt[pq[on]] - bodies.com[j])
+                    inv_m = self._b_inv_m[j][:, None, None]
+                    W[on] += gp * gq * (inv_m * eye - rp @ Iinv @ rq)
+                    Wc[on] += gp * gq * inv_m * eye
+                art = np.flatnonzero(self._b_art[jp] & self._b_art[jq] & (self._b_uid[jp] == self._b_uid[jq]))
+                for k in art.tolist():  # links of one multibody: J_p M^-1 J_q^T through its joints
+                    a, b = int(jp[k]), int(jq[k])
+                    Jq = self._jacobian(self._body_list[b], bodies.pose(b), self._pt[pq[k]])
+                    MJq = self._minv(int(self._b_uid[a])) @ Jq.T
+                    Jp = self._jacobian(self._body_list[a], bodies.pose(a), self._pt[pp[k]])
+                    Jc = self._jacobian(self._body_list[a], bodies.pose(a), bodies.com[a])
+                    W[k] += gp * gq * (Jp @ MJq)
+                    Wc[k] += gp * gq * (Jc @ MJq)
         return W, Wc
 
     def _check_advance(self, bodies: _Bodies) -> None:
@@ -1193,8 +1271,8 @@ class PybulletAdapter(EngineAdapter):
         for u, f, p, t in zip(self._b_uid[many].tolist(), Fm.tolist(), bodies.com[many].tolist(), Tm.tolist()):
             push(u, -1, f, p, world, c)
             pb.applyExternalTorque(u, -1, t, world, c)
-        if self._link_slots:
-            on_link = self._b_link[self._slot[ph]]
+        if self._art_slots:
+            on_link = self._b_art[self._slot[ph]]
             for q in np.flatnonzero(on_link[:, 0] | on_link[:, 1]).tolist():
                 (u1, l1), (u2, l2) = self._bodies[ph[q]]
                 f, p = F[q].tolist(), point[q].tolist()
@@ -1234,9 +1312,9 @@ class PybulletAdapter(EngineAdapter):
         if ph.size and self.compiled:
             moved = np.zeros(len(self._body_list), bool)
             self._k.cross_dv_free(ph.astype(np.int64), np.ascontiguousarray(P), self._slot64, self._pt, bodies.com,
-                                  bodies.rot, self._b_inv_m, self._b_inv_I, self._b_free, self._b_link,
+                                  bodies.rot, self._b_inv_m, self._b_inv_I, self._b_free, self._b_art,
                                   self._last_dv, moved)
-            links = moved & self._b_link
+            links = moved & self._b_art
             if np.any(links):
                 self._cross_dv_links(bodies, ph, P, links)
         elif ph.size:
@@ -1261,7 +1339,7 @@ class PybulletAdapter(EngineAdapter):
                 a1, a2 = self._slot[q, 0], self._slot[q, 1]
                 self._last_dv[q] = ((dv_b[a1] + cross_rows(dw_b[a1], self._pt[q] - bodies.com[a1]))
                                     - (dv_b[a2] + cross_rows(dw_b[a2], self._pt[q] - bodies.com[a2])))
-            links = moved & self._b_link
+            links = moved & self._b_art
             if np.any(links):
                 self._cross_dv_links(bodies, ph, P, links)
         if self.compiled:
@@ -1281,17 +1359,17 @@ class PybulletAdapter(EngineAdapter):
                 for side, sign in ((0, 1.0), (1, -1.0)):
                     j = self._slot[i, side]
                     b = self._body_list[j]
-                    if self._b_link[j] and b[0] == uid:
+                    if self._b_art[j] and b[0] == uid:
                         JtP = sign * self._jacobian(b, bodies.pose(j), self._pt[i]).T @ P[q]
                         Q = JtP if Q is None else Q + JtP
             if Q is None:
                 continue
-            dq = np.linalg.solve(self._mass_matrix(uid), Q)
+            dq = self._minv(uid) @ Q
             for i in range(len(self._bodies)):
                 for side, sign in ((0, 1.0), (1, -1.0)):
                     j = self._slot[i, side]
                     b = self._body_list[j]
-                    if self._b_link[j] and b[0] == uid:
+                    if self._b_art[j] and b[0] == uid:
                         self._last_dv[i] += sign * self._jacobian(b, bodies.pose(j), self._pt[i]) @ dq
 
     # -- records ----------------------------------------------------------------

@@ -42,6 +42,7 @@ BUILTIN: dict[str, str] = {
     "calibration": "experiments.scenarios.calibration:SCENARIO",
     "chung-ooi": "experiments.scenarios.chung_ooi:SCENARIO",
     "jet": "experiments.scenarios.jet:SCENARIO",
+    "objects": "experiments.scenarios.objects:SCENARIO",
     "paddle": "experiments.scenarios.paddle:SCENARIO",
 }
 

@@ -71,7 +71,8 @@ from .spec import (
     POOL_EXTRA,
     POOL_SAFETY,
     PP_CLEARANCE_STEPS,
-    PP_LIMIT,
+    PP_ENGINES,
+    PP_ENGINES_WHY,
     RADIUS_TRUNCATION_SD,
     RECORD_LATENCY_STEPS,
     SPEED_TRUNCATION_SD,
@@ -85,8 +86,9 @@ from .spec import (
 
 __all__ = [
     "ARRIVALS", "ENGINES", "FLIGHT_TIMEOUT_FACTOR", "MIN_CONE_ANGLE_DEG", "MIN_FLIGHT_STEPS", "PARK_DISTANCE",
-    "PARK_DRIFT", "PARK_SPACING_RADII", "PLATE_KINDS", "POOL_EXTRA", "POOL_SAFETY", "PP_CLEARANCE_STEPS", "PP_LIMIT",
-    "RADIUS_TRUNCATION_SD", "RECORD_LATENCY_STEPS", "SPEED_TRUNCATION_SD", "UNIT_TOL", "IMPACT_BUFFER",
+    "PARK_DRIFT", "PARK_SPACING_RADII", "PLATE_KINDS", "POOL_EXTRA", "POOL_SAFETY", "PP_CLEARANCE_STEPS", "PP_ENGINES",
+    "PP_ENGINES_WHY", "RADIUS_TRUNCATION_SD", "RECORD_LATENCY_STEPS", "SPEED_TRUNCATION_SD", "UNIT_TOL",
+    "IMPACT_BUFFER",
     "POSITION_CHECK_STEPS", "Bins", "JetSpec", "Nozzle", "Particles", "Plate", "JetAggregates", "finnie", "Emitter",
     "ChunkWriter", "JetCounts", "JetPool", "make_pool", "memory_profile", "rss_kb", "reference_by_angle", "report",
     "SCHEMA", "cells", "load", "run_cell", "spec_from_config", "SCENARIO",

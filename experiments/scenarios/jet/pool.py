@@ -22,7 +22,7 @@ from engines.pool import DONE, FLIGHT, PARKED, PlateShape, SphereScene, sphere_p
 
 from .aggregates import JetAggregates
 from .emission import Emitter, _Emission
-from .spec import PARK_DISTANCE, PARK_DRIFT, PP_CLEARANCE_STEPS, PP_LIMIT, JetSpec
+from .spec import PARK_DISTANCE, PARK_DRIFT, PP_CLEARANCE_STEPS, PP_ENGINES, PP_ENGINES_WHY, JetSpec
 
 
 # --------------------------------------------------------------------------
@@ -105,10 +105,6 @@ class JetPool:
         self.engine = engine
         self.spec = spec
         self.validity = spec.check_validity() if validate else None
-        if spec.particle_particle:
-            import warnings
-
-            warnings.warn(PP_LIMIT, UserWarning, stacklevel=2)
         sizes = spec.pool_sizes()
         cls = np.repeat(np.arange(len(sizes)), sizes)
         n = int(cls.size)
@@ -369,9 +365,10 @@ class JetPool:
             self.counts.pp_W += rec.W_diss_n + rec.W_diss_t
             if rows:
                 out.append({"kind": "particle-particle", "p1": i, "p2": j, "emission1": int(self.emission_id[i]),
-                            "emission2": int(self.emission_id[j]), "t_onset": d["t_onset"], "v_n_in": d["v_n_in"],
-                            "cor_n": rec.cor_n, "W_diss_n": rec.W_diss_n, "W_diss_t": rec.W_diss_t,
-                            "engine": self.engine})
+                            "emission2": int(self.emission_id[j]), "t_onset": d["t_onset"], "t_end": d["t_end"],
+                            "v_n_in": d["v_n_in"], "v_t_in": d["v_t_in"], "cor_n": rec.cor_n, "cor_t": rec.cor_t, "W_diss_n": rec.W_diss_n,
+                            "W_diss_t": rec.W_diss_t, "island": bool(d.get("island", False)),
+                            "outside_validity": "; ".join(rec.outside_validity), "engine": self.engine})
         if not plate:
             return 0, out if rows else []
         k = len(plate)
@@ -444,7 +441,12 @@ def make_pool(engine: str, spec: JetSpec, seed=0, **kw) -> JetPool:
 
 
 def _check_spheres(pool_class, spec: JetSpec) -> None:
-    """The engine's own limits on the particles (MuJoCo: mjMINVAL), per size class."""
+    """The engine's own limits on the particles (MuJoCo: mjMINVAL), per size
+    class, and particle-particle contacts only where they are supported
+    (spec.PP_ENGINES)."""
+    if spec.particle_particle and pool_class.engine not in PP_ENGINES:
+        raise ValueError(f"contact.particle_particle = true is not supported in {pool_class.engine} "
+                         f"(supported: {', '.join(PP_ENGINES)}): {PP_ENGINES_WHY}")
     radii = spec.particles.radii
     pool_class.check_spheres(radii, [spec.particles.mass(i) for i in range(len(radii))], label="particles.radius")
 

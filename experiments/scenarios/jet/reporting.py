@@ -149,9 +149,9 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
         L.append(f"| {c:.1f} | " + " | ".join(cells_) + f" | {float(finnie(c)):.3f} |\n")
     xr = max((v["x_max_over_R"] for v in validity or []), default=float("nan"))
     L.append("\nThe angle figure also shows the reference solver (most probable class, mean speed). The engines' "
-             f"tangential results (cor_t, spin, W_diss_t) depart from it here (x_max/R up to {xr:.2f}): the "
-             "adapters hold the lever arm at R over a step where the reference solver uses R - x/2, and pybullet "
-             "caps a body's rotation per step (docs/jet.md, known limits); cor_n and W_diss_n agree with it. "
+             "results agree with it, the tangential ones (cor_t, spin, W_diss_t) included, though the beads sink "
+             f"to x_max/R = {xr:.2f} within one step: the sub-cycle moves the contact point with the overlap "
+             "(lever arm R - x/2; docs/engines.md, deep and oblique contacts). "
              "Finnie's angle function (Finnie 1960, ductile cutting) for comparison: it is the volume cut per unit "
              "kinetic energy, normalised; the MSF contact has no cutting, so its dissipation follows the normal "
              "component instead.\n\n")

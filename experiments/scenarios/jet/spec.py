@@ -53,13 +53,16 @@ FLIGHT_TIMEOUT_FACTOR = 3.0
 #: velocity jump at emission (beyond touching): that first step's acceleration
 #: estimate must not see a contact (module docstring).
 PP_CLEARANCE_STEPS = 1.5
-#: Why particle-particle contacts are experimental (measured; docs/jet.md).
-PP_LIMIT = (
-    "particle-particle contacts are experimental: the adapters estimate a contact's external acceleration "
-    "from the change of its relative velocity over the last step, so the impulse of a particle-particle "
-    "contact looks, on the same particle's plate pair in the next step, like an acceleration of ~1e5-1e6 "
-    "m/s^2 (a rebounding bead meeting an incoming one drove a plate impact to 110 m/s in a test); the "
-    "estimate must exclude the impulses of the adapter's other pairs (engines/*/adapter.py)")
+#: Engines whose adapters give a sphere-sphere contact the geometry of first
+#: touch (engines._sweep: the normal where the spheres meet within the step,
+#: each body's own contact point on it), which the jet's particle-particle
+#: contacts need (docs/jet.md "Particle-particle contacts").
+PP_ENGINES = ("mujoco",)
+PP_ENGINES_WHY = (
+    "pybullet's adapter applies a pair's force at one contact point for both bodies, so it cannot take the "
+    "normal of first touch when two beads close with a tangential velocity within a step (each body needs its "
+    "own point on that normal); measured: a 53 deg bead-bead collision at 60 m/s, dt = 0.1 ms, solved as a "
+    "80 deg one (a bead left at (-28.2, -9.7) m/s instead of (-13.4, -21.9) m/s). Use engine mujoco")
 #: Direction vectors must be unit to this tolerance.
 UNIT_TOL = 1e-3
 

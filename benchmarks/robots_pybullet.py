@@ -1,0 +1,122 @@
+"""Benchmark: ``pybullet_data/mjcf/ant.xml`` and ``humanoid.xml`` in
+pybullet (``loadMJCF``) at MuJoCo's time steps of the files (ant 10 ms,
+humanoid 2 ms), MSF on every body-floor contact (natural rubber on steel,
+:func:`engines.pybullet.robots.load_mjcf_with_msf_floor`) against
+pybullet's own contact, under the same seeded random torques (uniform in
+each motor's MJCF torque range, gear x ctrlrange, seed 13) for STEPS steps,
+then STEPS steps with the torques off. Per record: the wall time per step
+of each variant and their ratio, the base height at the end of the
+torques, the MSF impact records, and the mechanical energy (kinetic +
+gravitational, :func:`engines.pybullet.robots.mechanical_energy`) over the
+rest phase (its largest rise above the rest phase's start after the first
+fifth). The MuJoCo variant is :mod:`benchmarks.robots`; ``make bench``
+runs both.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+
+import numpy as np
+
+from ._common import log
+
+STEPS = 1000
+QUICK_STEPS = 100
+SEED = 13
+MODELS = {"ant.xml": 0.01, "humanoid.xml": 0.002}
+
+
+def drive(client: int, uid: int, path: str):
+    """(movable joints, torque bounds [N m]) of the robot: each movable joint
+    with an MJCF motor gets its torque range, the others 0."""
+    import pybullet as pb
+
+    from engines.pybullet.robots import motor_torque_limits
+
+    limits = motor_torque_limits(path)
+    joints = [j for j in range(pb.getNumJoints(uid, physicsClientId=client))
+              if pb.getJointInfo(uid, j, physicsClientId=client)[2] != pb.JOINT_FIXED]
+    bound = np.array([limits.get(pb.getJointInfo(uid, j, physicsClientId=client)[1].decode(), 0.0)
+                      for j in joints])
+    return joints, bound
+
+
+def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None) -> dict:
+    """One variant: ``steps`` steps of seeded torques then ``rest_steps``
+    (default ``steps``) without; the record's fields (module docstring) and
+    the adapter (None for the built-in contact)."""
+    import pybullet as pb
+    import pybullet_data
+
+    from engines.pybullet import scenes
+    from engines.pybullet.adapter import PybulletAdapter
+    from engines.pybullet.robots import load_mjcf_with_msf_floor, mechanical_energy
+    from msf_contact import ContactPair, preset
+
+    rest_steps = steps if rest_steps is None else rest_steps
+    path = os.path.join(pybullet_data.getDataPath(), "mjcf", name)
+    dt = MODELS[name]
+    c = scenes.new_client(dt, gravity=9.81)
+    try:
+        robots, floor, pairs, shapes = load_mjcf_with_msf_floor(c, path, ContactPair(preset("natural-rubber"),
+                                                                                     preset("steel")))
+        uid = robots[0]
+        joints, bound = drive(c, uid, path)
+        adapter = PybulletAdapter(c, pairs, link_shapes=shapes) if msf else None
+        step = adapter.step if msf else (lambda: pb.stepSimulation(physicsClientId=c))
+        rng = np.random.default_rng(SEED)
+        t = time.perf_counter()
+        for _ in range(steps):
+            pb.setJointMotorControlArray(uid, joints, pb.TORQUE_CONTROL,
+                                         forces=(rng.uniform(-1.0, 1.0, len(joints)) * bound).tolist(),
+                                         physicsClientId=c)
+            step()
+        out = {"step_s": (time.perf_counter() - t) / steps,
+               "base_height_m": float(pb.getBasePositionAndOrientation(uid, physicsClientId=c)[0][2])}
+        pb.setJointMotorControlArray(uid, joints, pb.TORQUE_CONTROL, forces=[0.0] * len(joints), physicsClientId=c)
+        E = []
+        for _ in range(rest_steps):
+            step()
+            E.append(mechanical_energy(c, robots))
+        E = np.array(E)
+        first = rest_steps // 5
+        out.update(rest_energy_J=[float(E[0]), float(E[-1])],
+                   rest_energy_rise_J=float(np.max(E[first:] - E[first])), dt=dt, adapter=adapter,
+                   finite=bool(np.all(np.isfinite(pb.getBasePositionAndOrientation(uid, physicsClientId=c)[0]))))
+        if adapter is not None:
+            out.update(records=len(adapter.records), managed_contacts=len(adapter.pairs), jumps=adapter.jumps,
+                       outside_validity=sum(bool(r.outside_validity) for r in adapter.records))
+        return out
+    finally:
+        pb.disconnect(c)
+
+
+def measure(name: str, steps: int) -> dict:
+    out = {"name": "robots", "engine": "pybullet", "model": name}
+    for mode in ("msf", "builtin"):
+        r = run_model(name, steps, mode == "msf")
+        r.pop("adapter")
+        out["dt"] = r.pop("dt")
+        out.update({f"{mode}_{k}": v for k, v in r.items()})
+    out["ratio_msf_over_builtin"] = out["msf_step_s"] / out["builtin_step_s"]
+    return out
+
+
+def run(quick: bool = False) -> list[dict]:
+    steps = QUICK_STEPS if quick else STEPS
+    out = []
+    for name in MODELS:
+        log(f"robots: {name} in pybullet, {steps} steps of seeded torques, then {steps} at rest")
+        try:
+            r = measure(name, steps)
+        except Exception as exc:  # noqa: BLE001 - one model failing must not lose the other
+            log(f"  failed: {type(exc).__name__}: {exc}")
+            out.append({"name": "robots", "engine": "pybullet", "model": name, "failed": True,
+                        "reason": f"{type(exc).__name__}: {exc}"[:300]})
+            continue
+        log(f"  msf {r['msf_step_s'] * 1e3:.2f} ms, builtin {r['builtin_step_s'] * 1e3:.3f} ms per step; "
+            f"rest energy rise msf {r['msf_rest_energy_rise_J']:.3g} J, builtin {r['builtin_rest_energy_rise_J']:.3g} J")
+        out.append(r)
+    return out

@@ -1,0 +1,279 @@
+"""A robot model nobody here wrote in pybullet, with MSF on every body-floor
+contact (issue 13): ``pybullet.loadMJCF`` of an MJCF file (e.g.
+``pybullet_data/mjcf/ant.xml`` or ``humanoid.xml``), a floor plane added if
+the file has none, and one :class:`engines.base.PairSpec` per (robot shape,
+floor) with a law built for the curvature the floor sees there: a sphere its
+radius, a capsule the sphere of its radius (on a plane it touches with its
+end spheres, engines.pybullet.narrow), a box the sphere of its edge radius
+(its corners).
+
+pybullet cannot report the shapes of such a model: ``getCollisionShapeData``
+ends the Python process (no exception) on a link whose capsule the MJCF gives
+with ``fromto``, as every limb of the ant and the humanoid, and its MJCF
+importer does not place all geoms where MuJoCo does (the humanoid's torso
+geoms sit 0.12 m higher than in MuJoCo's compile of the same file). So the
+shapes are measured from pybullet's own collision (:func:`probe_link_shapes`):
+a plane is put around the link in 26 directions and ``getClosestPoints``
+gives, per child shape, its exact support point (the convex-plane
+algorithm, not GJK); with each child's kind and radius among the link's
+visual shapes (sphere, capsule), the support points minus the radius along
+the direction are the sphere's centre or the capsule's segment, fitted to
+PROBE_ATOL.
+"""
+
+from __future__ import annotations
+
+import itertools
+import math
+
+import numpy as np
+import pybullet as pb
+
+from engines.base import PairSpec
+from engines.pybullet.narrow import LinkShape
+from msf_contact.curvature import tangent_basis
+from msf_contact.geometry import Curvature
+from msf_contact.laws import make_law
+from msf_contact.materials import ContactPair
+from msf_contact.shapes import DEFAULT_EDGE_RADIUS
+
+#: A child shape's support points minus its radius must lie on its segment
+#: (a capsule: of its length) or at one centre (a sphere) to this [m]:
+#: pybullet stores sizes in float32 (measured residuals <= 7e-10 m on the ant
+#: and the humanoid).
+PROBE_ATOL = 1e-6
+#: Distance of the probe plane from the link's centre of mass [m]: beyond any limb.
+PROBE_DISTANCE = 10.0
+_DIRECTIONS = np.array([d for d in itertools.product((-1.0, 0.0, 1.0), repeat=3) if any(d)])
+_DIRECTIONS /= np.linalg.norm(_DIRECTIONS, axis=1)[:, None]
+
+
+def _link_name(client: int, uid: int, link: int) -> str:
+    if link < 0:
+        return pb.getBodyInfo(uid, physicsClientId=client)[0].decode()
+    return pb.getJointInfo(uid, link, physicsClientId=client)[12].decode()
+
+
+def _inertial_frame(client: int, uid: int, link: int):
+    if link < 0:
+        pos, orn = pb.getBasePositionAndOrientation(uid, physicsClientId=client)
+    else:
+        st = pb.getLinkState(uid, link, computeForwardKinematics=1, physicsClientId=client)
+        pos, orn = st[0], st[1]
+    return np.asarray(pos, float), np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
+
+
+def _quat_z_to(v) -> list[float]:
+    """The quaternion (x, y, z, w) turning +z onto the unit vector v."""
+    z = np.array([0.0, 0.0, 1.0])
+    axis = np.cross(z, v)
+    s, c = float(np.linalg.norm(axis)), float(z @ v)
+    if s < 1e-12:
+        return [0.0, 0.0, 0.0, 1.0] if c > 0 else [1.0, 0.0, 0.0, 0.0]
+    half = 0.5 * math.atan2(s, c)
+    return [*(axis / s * math.sin(half)), math.cos(half)]
+
+
+def _candidates(client: int, uid: int, link: int) -> set:
+    """(kind, radius, length) of the link's visual shapes (spheres, capsules)."""
+    out = set()
+    for v in pb.getVisualShapeData(uid, physicsClientId=client):
+        if v[1] != link:
+            continue
+        if v[2] == pb.GEOM_SPHERE:
+            out.add(("sphere", float(v[3][0]), 0.0))
+        elif v[2] == pb.GEOM_CAPSULE:
+            out.add(("capsule", float(v[3][1]), float(v[3][0])))
+        else:
+            raise ValueError(f"link {_link_name(client, uid, link)!r} (body {uid}, link {link}): a shape of geometry "
+                             f"type {v[2]} cannot be measured from pybullet (spheres and capsules can): give its "
+                             "shapes to PybulletAdapter(link_shapes=...) yourself")
+    return out
+
+
+def _supports(client: int, uid: int, link: int, com) -> np.ndarray:
+    """Support points (children, 26, 3) [m] of the link's child shapes in _DIRECTIONS."""
+    plane = pb.createMultiBody(0.0, pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=client),
+                               basePosition=[0.0, 0.0, -1e3], physicsClientId=client)
+    try:
+        support = None
+        for d in _DIRECTIONS:
+            pb.resetBasePositionAndOrientation(plane, (com + PROBE_DISTANCE * d).tolist(), _quat_z_to(-d),
+                                               physicsClientId=client)
+            rows = pb.getClosestPoints(uid, plane, 10.0 * PROBE_DISTANCE, link, -1, physicsClientId=client)
+            if support is None:
+                support = [[] for _ in rows]
+            if len(rows) != len(support):
+                raise ValueError(f"link {_link_name(client, uid, link)!r}: pybullet listed {len(support)} shapes, "
+                                 f"then {len(rows)}")
+            for k, r in enumerate(rows):
+                support[k].append(np.asarray(r[5], float))
+    finally:
+        pb.removeBody(plane, physicsClientId=client)
+    return np.array(support, dtype=float).reshape(-1, len(_DIRECTIONS), 3)
+
+
+def _fit(S, kind: str, r: float, L: float):
+    """(residual [m], ends): the support points S (26, 3) as a sphere's
+    centre or a capsule's segment of radius r, length L."""
+    C = S - r * _DIRECTIONS
+    D = np.linalg.norm(C[:, None] - C[None], axis=2)
+    i, j = np.unravel_index(int(D.argmax()), D.shape)
+    if kind == "sphere":
+        return float(D.max()), (C.mean(axis=0), None)
+    ax = (C[j] - C[i]) / D[i, j]
+    t = (C - C[i]) @ ax
+    off = float(np.max(np.linalg.norm(C - C[i] - np.outer(t, ax), axis=1)))
+    return max(abs(float(D[i, j]) - L), off), (C[i], C[j])
+
+
+def probe_link_shapes(client: int, uid: int, link: int) -> list[LinkShape]:
+    """The sphere and capsule shapes of a link, measured from pybullet's own
+    collision (module docstring), in the link's inertial frame; ValueError
+    naming the link for any other kind or a fit beyond PROBE_ATOL."""
+    cands = _candidates(client, uid, link)
+    if not cands:
+        return []
+    com, rot = _inertial_frame(client, uid, link)
+    out = []
+    for S in _supports(client, uid, link, com):
+        best = min(((_fit(S, *c), c) for c in sorted(cands)), key=lambda t: t[0][0])
+        (res, (a, b)), (kind, r, L) = best
+        if not res <= PROBE_ATOL:
+            raise ValueError(f"link {_link_name(client, uid, link)!r} (body {uid}, link {link}): a shape pybullet "
+                             f"collides is no sphere or capsule of the link's visual sizes (best fit off by {res:.3g} "
+                             f"m > {PROBE_ATOL} m): give its shapes to PybulletAdapter(link_shapes=...) yourself")
+        if kind == "sphere":
+            out.append(LinkShape("sphere", np.array([r]), rot.T @ (a - com), np.eye(3)))
+        else:
+            axis = (b - a) / np.linalg.norm(b - a)
+            t1, t2 = tangent_basis(axis)
+            frame = np.column_stack([t1, t2, axis])
+            out.append(LinkShape("capsule", np.array([r, 0.5 * L]), rot.T @ (0.5 * (a + b) - com), rot.T @ frame))
+    return out
+
+
+#: Share of a joint's range kept between its load position and a limit (place_joints_in_range).
+RANGE_MARGIN = 0.1
+
+
+def place_joints_in_range(client: int, uid: int) -> dict[int, float]:
+    """Put every limited joint that loadMJCF left outside its range (it puts
+    all joints at 0; the ant's ankles are limited to 30-100 degrees) at the
+    point of its range nearest 0, RANGE_MARGIN of the range inside: pybullet
+    pushes a joint beyond its limit back with its limit constraint, which
+    adds energy with no contact at all (measured on the ant: +0.7 J per 10 ms
+    step in flight). Returns {joint index: new position}."""
+    moved = {}
+    for j in range(pb.getNumJoints(uid, physicsClientId=client)):
+        info = pb.getJointInfo(uid, j, physicsClientId=client)
+        lo, hi = float(info[8]), float(info[9])
+        if info[2] == pb.JOINT_FIXED or not lo < hi:
+            continue
+        q = pb.getJointState(uid, j, physicsClientId=client)[0]
+        inside = min(max(q, lo + RANGE_MARGIN * (hi - lo)), hi - RANGE_MARGIN * (hi - lo))
+        if not lo < q < hi:
+            pb.resetJointState(uid, j, inside, 0.0, physicsClientId=client)
+            moved[j] = inside
+    return moved
+
+
+def load_mjcf_with_msf_floor(client: int, path: str, pair: ContactPair, *, law: str = "msf",
+                             edge_radius: float = DEFAULT_EDGE_RADIUS, **law_options):
+    """(robot uids, floor uid, pairs, link_shapes): the model at ``path``
+    loaded into ``client`` by ``loadMJCF``, a floor plane (z = 0) added if
+    the file has none, and the MSF pairs ((uid, link, k), (floor, -1)) with
+    laws of ``law`` for ``pair`` (body 1 the robot's material, body 2 the
+    floor's), one per robot shape (:func:`probe_link_shapes`), the curvature
+    each shows the floor: a sphere its radius, a capsule the sphere of its
+    radius. ``link_shapes`` is what
+    :class:`engines.pybullet.adapter.PybulletAdapter` needs to know them:
+    ``PybulletAdapter(client, pairs, link_shapes=link_shapes)``. The robots'
+    joint motors are switched off (pybullet's default velocity motors hold
+    every joint; the caller sets torques, as MuJoCo's motors do), and the
+    joints loadMJCF left outside their range are put inside it
+    (:func:`place_joints_in_range`). edge_radius: of box shapes (none in
+    these files)."""
+    uids = pb.loadMJCF(str(path), physicsClientId=client)
+    floor, robots = None, []
+    for u in uids:
+        shapes = pb.getVisualShapeData(u, physicsClientId=client)
+        if (pb.getNumJoints(u, physicsClientId=client) == 0 and shapes and shapes[0][2] == pb.GEOM_PLANE
+                and pb.getDynamicsInfo(u, -1, physicsClientId=client)[0] == 0.0):
+            floor = u
+        else:
+            robots.append(u)
+    if floor is None:
+        floor = pb.createMultiBody(0.0, pb.createCollisionShape(pb.GEOM_PLANE, physicsClientId=client),
+                                   physicsClientId=client)
+    link_shapes: dict[tuple[int, int], list[LinkShape]] = {}
+    for u in robots:
+        nj = pb.getNumJoints(u, physicsClientId=client)
+        pb.setJointMotorControlArray(u, list(range(nj)), pb.VELOCITY_CONTROL, forces=[0.0] * nj,
+                                     physicsClientId=client)
+        place_joints_in_range(client, u)
+        for link in range(-1, nj):
+            shapes = probe_link_shapes(client, u, link)
+            if shapes:
+                link_shapes[(u, link)] = shapes
+    laws: dict[float, object] = {}
+    pairs = []
+    for (u, link), shapes in link_shapes.items():
+        for k, s in enumerate(shapes):
+            R = float(s.size[0]) if s.kind in ("sphere", "capsule") else min(edge_radius, float(np.min(s.size)))
+            if R not in laws:
+                laws[R] = make_law(law, pair, Curvature.sphere_on_plane(R), **law_options)
+            pairs.append(PairSpec((u, link, k), (floor, -1), laws[R]))
+    if not pairs:
+        raise ValueError(f"no shape of {path} collides with the floor: nothing for MSF to do")
+    return robots, floor, pairs, link_shapes
+
+
+def motor_torque_limits(path: str) -> dict[str, float]:
+    """{joint name: largest motor torque [N m]} of the MJCF file's
+    ``<actuator><motor joint gear ctrlrange>`` (gear times the larger
+    |ctrlrange| bound; ctrlrange from the motor or the top-level
+    ``<default><motor>``, else 1): what MuJoCo's motors apply at full
+    control, for driving the same joints in pybullet (loadMJCF imports no
+    actuator)."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.parse(str(path)).getroot()
+    default = root.find("default/motor")
+    base = default.get("ctrlrange") if default is not None else None
+    out = {}
+    for m in root.iter("motor"):
+        if m.get("joint") is None:
+            continue
+        rng = m.get("ctrlrange", base)
+        bound = max(abs(float(v)) for v in rng.split()) if rng else 1.0
+        out[m.get("joint")] = float(m.get("gear", "1").split()[0]) * bound
+    return out
+
+
+def mechanical_energy(client: int, uids) -> float:
+    """Kinetic plus gravitational potential energy [J] of the bodies ``uids``
+    (every link: 1/2 m v^2 + 1/2 w.I w - m g.z, world inertia from the
+    inertial frame's principal axes)."""
+    g = np.array([pb.getPhysicsEngineParameters(physicsClientId=client)[k]
+                  for k in ("gravityAccelerationX", "gravityAccelerationY", "gravityAccelerationZ")])
+    E = 0.0
+    for u in uids:
+        nj = pb.getNumJoints(u, physicsClientId=client)
+        states = [(*pb.getBasePositionAndOrientation(u, physicsClientId=client),
+                   *pb.getBaseVelocity(u, physicsClientId=client))]
+        if nj:
+            for st in pb.getLinkStates(u, list(range(nj)), computeLinkVelocity=1, physicsClientId=client):
+                states.append((st[0], st[1], st[6], st[7]))
+        for link, (pos, orn, v, w) in zip(range(-1, nj), states):
+            info = pb.getDynamicsInfo(u, link, physicsClientId=client)
+            m, I = info[0], np.asarray(info[2], float)
+            R = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
+            wb = R.T @ np.asarray(w, float)
+            v = np.asarray(v, float)
+            E += 0.5 * m * v @ v + 0.5 * wb @ (I * wb) - m * g @ np.asarray(pos, float)
+    return float(E)
+
+
+__all__ = ["load_mjcf_with_msf_floor", "mechanical_energy", "motor_torque_limits", "place_joints_in_range",
+           "probe_link_shapes"]

@@ -1,0 +1,98 @@
+"""The energy at rest of pybullet multibodies under MSF, the numbers
+docs/engines.md quotes (issue 13):
+
+    .venv/bin/python scripts/pybullet_robots.py dumbbell     # two links on a hinge resting, 1 and 0.2 ms
+    .venv/bin/python scripts/pybullet_robots.py ant          # ant.xml resting on its feet, 10, 1 and 0.2 ms
+
+Each run puts the body on a steel floor (natural rubber, gravity 9.81
+m/s^2), no torques, and prints the mechanical energy plus the elastic work
+stored in the active contacts (manager.W_el) at the start and the end, and
+its largest rise above its running minimum: what a passive body resting on
+dissipative contacts must not show beyond rounding.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+
+import numpy as np
+import pybullet as pb
+import pybullet_data
+
+from engines.base import PairSpec
+from engines.pybullet import scenes
+from engines.pybullet.adapter import PybulletAdapter
+from engines.pybullet.robots import load_mjcf_with_msf_floor, mechanical_energy
+from msf_contact import ContactPair, Curvature, make_law, preset
+
+PAIR = ContactPair(preset("natural-rubber"), preset("steel"))
+
+
+def watch(c, ad, uids, seconds, dt) -> str:
+    E = []
+    for _ in range(int(round(seconds / dt))):
+        ad.step()
+        E.append(mechanical_energy(c, uids) + float(np.sum(ad.manager.W_el[ad.manager.active])))
+    E = np.array(E)
+    return (f"E + W_el {E[0]:.6g} -> {E[-1]:.6g} J, largest rise above its running minimum "
+            f"{np.max(E - np.minimum.accumulate(E)):.3g} J")
+
+
+def dumbbell(shape: str, dt: float, seconds: float) -> str:
+    """Two links (spheres, or capsules lying along y) of 1 kg, R 20 mm, 0.2 m
+    apart on a hinge about y, resting on the floor."""
+    c = scenes.new_client(dt, gravity=9.81)
+    try:
+        plane = scenes.add_plate(c)
+        R = 0.02
+        if shape == "sphere":
+            s, orn = pb.createCollisionShape(pb.GEOM_SPHERE, radius=R, physicsClientId=c), [0, 0, 0, 1]
+        else:
+            s = pb.createCollisionShape(pb.GEOM_CAPSULE, radius=R, height=0.1, physicsClientId=c)
+            orn = list(pb.getQuaternionFromEuler([np.pi / 2, 0, 0]))
+        u = pb.createMultiBody(1.0, s, basePosition=[0, 0, R + 1e-4], baseOrientation=orn, linkMasses=[1.0],
+                               linkCollisionShapeIndices=[s], linkVisualShapeIndices=[-1], linkPositions=[[0.2, 0, 0]],
+                               linkOrientations=[[0, 0, 0, 1]], linkInertialFramePositions=[[0, 0, 0]],
+                               linkInertialFrameOrientations=[[0, 0, 0, 1]], linkParentIndices=[0],
+                               linkJointTypes=[pb.JOINT_REVOLUTE],
+                               linkJointAxis=[[0, 1, 0] if shape == "sphere" else [0, 0, 1]], physicsClientId=c)
+        for link in (-1, 0):
+            pb.changeDynamics(u, link, linearDamping=0, angularDamping=0, jointDamping=0,
+                              localInertiaDiagonal=[1.6e-4] * 3, physicsClientId=c)
+        pb.setJointMotorControl2(u, 0, pb.VELOCITY_CONTROL, force=0, physicsClientId=c)
+        law = make_law("msf", PAIR, Curvature.sphere_on_plane(R))
+        ad = PybulletAdapter(c, [PairSpec((u, -1), (plane, -1), law), PairSpec((u, 0), (plane, -1), law)])
+        return f"dumbbell of {shape}s, dt {dt:g} s, {seconds:g} s: " + watch(c, ad, [u], seconds, dt)
+    finally:
+        pb.disconnect(c)
+
+
+def ant(dt: float, seconds: float) -> str:
+    """ant.xml placed with its lowest shape 0.5 mm above the floor, no torques."""
+    c = scenes.new_client(dt, gravity=9.81)
+    try:
+        robots, floor, pairs, shapes = load_mjcf_with_msf_floor(
+            c, os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml"), PAIR)
+        u = robots[0]
+        gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
+        pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
+        pb.resetBasePositionAndOrientation(u, [pos[0], pos[1], pos[2] - gap + 5e-4], orn, physicsClientId=c)
+        ad = PybulletAdapter(c, pairs, link_shapes=shapes)
+        return f"ant at rest, dt {dt:g} s, {seconds:g} s: " + watch(c, ad, robots, seconds, dt)
+    finally:
+        pb.disconnect(c)
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("case", choices=("dumbbell", "ant"))
+    args = ap.parse_args()
+    if args.case == "dumbbell":
+        for shape in ("sphere", "capsule"):
+            for dt in (1e-3, 2e-4):
+                print(dumbbell(shape, dt, 0.3))
+        print(dumbbell("capsule", 1e-3, 1.0))
+    else:
+        for dt, seconds in ((1e-2, 1.0), (1e-3, 1.0), (2e-4, 0.5)):
+            print(ant(dt, seconds))

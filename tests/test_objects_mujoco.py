@@ -1,0 +1,121 @@
+"""Objects from pybullet_data in MuJoCo (issue 13): the URDF's geometry and
+mass, the start pose, the physical velocities behind MSF's timing
+correction, and the objects scenario's plumbing (the drops themselves are
+``msf-contact run experiments/configs/objects.toml``, docs/engines.md)."""
+
+import math
+import os
+
+import numpy as np
+import pytest
+
+from msf_contact import ContactPair, Curvature, make_law, preset
+
+mujoco = pytest.importorskip("mujoco")
+pybullet_data = pytest.importorskip("pybullet_data")
+pytestmark = pytest.mark.mujoco
+
+from engines.base import PairSpec  # noqa: E402
+from engines.mujoco import MujocoAdapter  # noqa: E402
+from engines.mujoco.objects import FLOOR, OBJECT, lowest_point, object_on_plane, urdf_object  # noqa: E402
+from engines.mujoco.robots import mechanical_energy  # noqa: E402
+
+DATA = pybullet_data.getDataPath()
+#: MuJoCo's own distance of the object to the floor against the height asked
+#: for: its narrow phase's convergence on a mesh (MuJoCo's default tolerance)
+DIST_ATOL = 1e-6
+
+
+def test_urdf_geometry_and_mass():
+    cube = urdf_object(os.path.join(DATA, "cube_small.urdf"))
+    assert cube["kind"] == "box" and cube["size"] == [0.025, 0.025, 0.025] and cube["mass"] == 0.1
+    duck = urdf_object(os.path.join(DATA, "duck_vhacd.urdf"))
+    assert duck["kind"] == "mesh" and duck["scale"] == [0.05, 0.05, 0.05] and os.path.isfile(duck["file"])
+    with pytest.raises(ValueError, match="links"):
+        urdf_object(os.path.join(DATA, "r2d2.urdf"))
+
+
+@pytest.mark.parametrize("name", ["cube_small.urdf", "duck_vhacd.urdf", "cylinder"])
+def test_the_lowest_point_starts_at_the_height(name):
+    """MuJoCo's own collision distance (built-in contact on, a margin to see
+    the gap) equals the height asked for, whatever the turn."""
+    obj = (dict(kind="cylinder", size=[0.02, 0.05], mass=0.15) if name == "cylinder"
+           else urdf_object(os.path.join(DATA, name)))
+    q = np.zeros(4)
+    mujoco.mju_euler2Quat(q, np.radians([25.0, 15.0, 0.0]), "xyz")
+    model, data = object_on_plane(obj, dt=1e-3, height=0.01, quat=q, msf=False)
+    model.geom_margin[:] = 0.05
+    mujoco.mj_forward(model, data)
+    assert data.ncon >= 1 and min(c.dist for c in data.contact[:data.ncon]) == pytest.approx(0.01, abs=DIST_ATOL)
+    assert lowest_point(model, data) == pytest.approx(0.01, abs=DIST_ATOL)
+
+
+def test_velocity_offset_gives_the_physical_velocity_after_a_bounce():
+    """A ball dropped at 1 m/s on a plane (gravity off): in the step after the
+    contact's last step the engine's velocity still carries the timing
+    correction; qvel - velocity_offset() is the rebound cor v (the record's),
+    the raw qvel is not, and one step later they agree."""
+    xml = ('<mujoco><option timestep="1e-3" gravity="0 0 0"/><worldbody><geom name="plate" type="plane" '
+           'size="1 1 .1"/><body name="b" pos="0 0 0.0205"><freejoint/><geom name="ball" type="sphere" '
+           'size="0.02" mass="0.031"/></body></worldbody><contact><exclude body1="world" body2="b"/></contact>'
+           '</mujoco>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qvel[2] = -1.0
+    law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(0.02))
+    ad = MujocoAdapter(model, data, [PairSpec("ball", "plate", law)])
+    for _ in range(50):
+        ad.step()
+        if not ad.manager.active[0] and np.any(ad.manager.J[0] != 0.0) and ad.steps > 2:
+            break
+    raw, phys = data.qvel[2], (data.qvel - ad.velocity_offset())[2]
+    ad.step()
+    assert not np.any(ad.velocity_offset())  # the correction is removed in this step
+    for _ in range(5):
+        if ad.records:
+            break
+        ad.step()
+    cor = ad.records[0].cor_n
+    assert phys == pytest.approx(cor, rel=1e-6) and abs(raw - cor) > 1e-3 * cor
+    assert data.qvel[2] == pytest.approx(cor, rel=1e-6)
+    E = mechanical_energy(model, data)
+    assert E == pytest.approx(0.5 * 0.031 * cor ** 2, rel=1e-6)
+
+
+def test_a_pair_keeps_its_law_during_a_contact():
+    xml = ('<mujoco><option timestep="1e-4" gravity="0 0 0"/><worldbody><geom name="plate" type="plane" '
+           'size="1 1 .1"/><body name="b" pos="0 0 0.0201"><freejoint/><geom name="g" type="ellipsoid" '
+           'size="0.02 0.02 0.02" mass="0.031"/></body></worldbody><contact><exclude body1="world" body2="b"/>'
+           '</contact></mujoco>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qvel[2] = -1.0
+    pair = ContactPair(preset("natural-rubber"), preset("steel"))
+    ad = MujocoAdapter(model, data, [PairSpec("g", "plate", make_law("msf", pair, Curvature.sphere_on_plane(0.02)))])
+    while not ad.manager.active[0]:
+        ad.step()
+    with pytest.raises(ValueError, match="in contact"):
+        ad.manager.set_law(0, make_law("msf", pair, Curvature.sphere_on_plane(0.01)))
+
+
+def test_objects_scenario_runs_and_reports(tmp_path):
+    """The scenario's plumbing on a free fall (no contact yet): every cell's
+    energy is the integrator's exact free fall, the report has the table and a
+    checked figure per object."""
+    from experiments.runner import run
+
+    cfg = tmp_path / "objects.toml"
+    cfg.write_text('scenario = "objects"\n[objects]\nrun = ["duck"]\n'
+                   "[drop]\nheight = 0.05\nduration = 0.02\nsample = 0.005\nomega = [0.0, 0.0, 0.0]\n"
+                   '[engines]\nrun = ["mujoco", "mujoco-builtin"]\n')
+    out = run(cfg, tmp_path / "out", quiet=True)
+    text = (out / "report.md").read_text()
+    assert text.count("| no |") == 2 and "objects_duck.png" in text
+    assert (out / "figures" / "objects_duck.png").is_file()
+    import json
+
+    for line in (out / "records.jsonl").read_text().splitlines():
+        r = json.loads(line)
+        assert r["energy_gain"] == 0.0
+        # free fall under semi-implicit Euler loses exactly m g^2 dt^2 / 2 a step (both objects 0.1 kg)
+        assert math.isclose(r["E_end"], r["E0"] - 20 * 0.5 * 0.1 * 9.81 ** 2 * 1e-3 ** 2, rel_tol=1e-9)
