@@ -117,6 +117,12 @@ class IslandBalance:
         self._open.append((np.asarray(pp).copy(), np.asarray(keys).copy(), float(T0.sum() + U0.sum()), q0, S0,
                            scale))
 
+    def forget(self, pairs) -> None:
+        """Drop the open islands holding any of ``pairs`` (their bodies' state
+        jumped: a reset, a placement; ContactManager.interrupt)."""
+        pairs = np.asarray(pairs)
+        self._open = [o for o in self._open if not np.any(np.isin(o[0], pairs))]
+
     def close(self, mgr, t_start: float) -> None:
         """At the start of the next step (the engine has applied the step):
         compare each island's E + S with its start; flag and warn on a gain."""

@@ -266,6 +266,8 @@ class Records:
         self._held_force[sel] = 0.0
         self.in_island[sel] = False
         self._listed[sel] = False
+        if self._balance is not None:  # a state jump is not an island's work (engines._contacts.balance)
+            self._balance.forget(np.flatnonzero(sel))
         self._off[sel] = 0.0
         return dropped
 
