@@ -107,15 +107,15 @@ def test_objects_scenario_runs_and_reports(tmp_path):
     cfg = tmp_path / "objects.toml"
     cfg.write_text('scenario = "objects"\n[objects]\nrun = ["duck"]\n'
                    "[drop]\nheight = 0.05\nduration = 0.02\nsample = 0.005\nomega = [0.0, 0.0, 0.0]\n"
-                   '[engines]\nrun = ["mujoco", "mujoco-builtin"]\n')
+                   '[engines]\nrun = ["mujoco", "mujoco-builtin", "pybullet", "pybullet-builtin"]\n')
     out = run(cfg, tmp_path / "out", quiet=True)
     text = (out / "report.md").read_text()
-    assert text.count("| no |") == 2 and "objects_duck.png" in text
+    assert text.count("| no |") == 4 and "objects_duck.png" in text
     assert (out / "figures" / "objects_duck.png").is_file()
     import json
 
     for line in (out / "records.jsonl").read_text().splitlines():
         r = json.loads(line)
         assert r["energy_gain"] == 0.0
-        # free fall under semi-implicit Euler loses exactly m g^2 dt^2 / 2 a step (both objects 0.1 kg)
-        assert math.isclose(r["E_end"], r["E0"] - 20 * 0.5 * 0.1 * 9.81 ** 2 * 1e-3 ** 2, rel_tol=1e-9)
+        # free fall under semi-implicit Euler loses exactly m g^2 dt^2 / 2 a step (the duck: 0.1 kg)
+        assert math.isclose(r["E_end"], r["E0"] - 20 * 0.5 * 0.1 * 9.81 ** 2 * 1e-3 ** 2, rel_tol=1e-9), r["engine"]

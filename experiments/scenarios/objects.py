@@ -20,8 +20,8 @@ flagged outside the model's validity, the wall time per step. A run that
 raises is recorded as failed with the message (the report says so).
 
 Engines: ``mujoco`` (MSF), ``mujoco-builtin`` (default solref/solimp);
-``pybullet`` and ``pybullet-builtin`` when ``engines.pybullet.narrow`` is
-installed (issue 13's pybullet side): the runners are per engine
+``pybullet`` (MSF through ``engines.pybullet.narrow``) and
+``pybullet-builtin`` (pybullet's defaults): the runners are per engine
 (:data:`RUNNERS`), the cell and the report are not.
 
 Configuration (TOML)::
@@ -109,14 +109,10 @@ def load(raw: dict, path: str) -> dict:
     if d["duration"] / d["dt"] > 1e6:
         raise ConfigError(f"{path}: [drop.duration] / [drop.dt] = {d['duration'] / d['dt']:.3g} steps is above "
                           "the bound 1e6")
-    pb = [e for e in cfg["engines"]["run"] if e.startswith("pybullet") and e != "pybullet-builtin"]
-    if pb and not pybullet_shapes_available():
-        raise ConfigError(f"{path}: [engines.run] {pb[0]!r}: the pybullet adapter has no box, cylinder or mesh "
+    if "pybullet" in cfg["engines"]["run"] and not pybullet_shapes_available():
+        raise ConfigError(f"{path}: [engines.run] 'pybullet': the pybullet adapter has no box, cylinder or mesh "
                           "pairs in this tree (engines/pybullet/narrow.py, issue 13); run 'mujoco', "
                           "'mujoco-builtin', 'pybullet-builtin'")
-    if "pybullet-builtin" in cfg["engines"]["run"]:
-        raise ConfigError(f"{path}: [engines.run] 'pybullet-builtin': no pybullet runner in this tree yet "
-                          "(RUNNERS has mujoco only); run 'mujoco', 'mujoco-builtin'")
     objs = cfg["objects"]
     import os
 
@@ -223,7 +219,96 @@ def run_mujoco(cell: dict, msf: bool) -> dict:
     return out
 
 
-RUNNERS = {"mujoco": run_mujoco}
+def _pybullet_energy(c: int, uid: int) -> float:
+    """m g z + m v^2 / 2 + w.I w / 2 of a free pybullet body (its base frame
+    is its inertial frame: position the centre of mass, inertia diagonal)."""
+    import numpy as np
+    import pybullet as pb
+
+    info = pb.getDynamicsInfo(uid, -1, physicsClientId=c)
+    m, I = float(info[0]), np.array(info[2], dtype=float)
+    pos, orn = pb.getBasePositionAndOrientation(uid, physicsClientId=c)
+    v, w = (np.array(a, dtype=float) for a in pb.getBaseVelocity(uid, physicsClientId=c))
+    R = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
+    wl = R.T @ w
+    g = float(pb.getPhysicsEngineParameters(physicsClientId=c)["gravityAccelerationZ"])
+    return float(-m * g * pos[2] + 0.5 * m * v @ v + 0.5 * wl @ (I * wl))
+
+
+def run_pybullet(cell: dict, msf: bool) -> dict:
+    """One drop in pybullet: the object from its URDF (``loadURDF``: the
+    inertia of its collision shape) or a cylinder shape, over a plane; MSF
+    through the adapter's narrow phase or pybullet's own contact (its
+    defaults, lateral friction ``friction``). With MSF the energy is sampled
+    only at steps without a pending timing correction (the pybullet adapter
+    has no velocity offset to take out), plus the contacts' elastic energy."""
+    import warnings
+
+    import numpy as np
+    import pybullet as pb
+
+    from engines.base import PairSpec
+    from engines.pybullet import PybulletAdapter, scenes
+
+    d, m = cell["drop"], cell["materials"]
+    c = scenes.new_client(d["dt"], gravity=9.81)
+    try:
+        plane = scenes.add_plate(c)
+        desc = object_description(cell)
+        w, x, y, z = _start_quat(d["tilt_deg"])
+        orn = [x, y, z, w]
+        if "urdf" in desc:
+            uid = pb.loadURDF(desc["urdf"], [0, 0, 1.0], orn, physicsClientId=c)
+        else:
+            r, h = desc["size"]
+            sh = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=r, height=2 * h, physicsClientId=c)
+            uid = pb.createMultiBody(desc["mass"], sh, basePosition=[0, 0, 1.0], baseOrientation=orn,
+                                     physicsClientId=c)
+            Ixx = desc["mass"] * (3 * r * r + 4 * h * h) / 12
+            pb.changeDynamics(uid, -1, localInertiaDiagonal=[Ixx, Ixx, desc["mass"] * r * r / 2], physicsClientId=c)
+        scenes._free_dynamics(c, uid)
+        for body in (uid, plane):
+            pb.changeDynamics(body, -1, lateralFriction=m["friction"], physicsClientId=c)
+        gap = min(p[8] for p in pb.getClosestPoints(uid, plane, 2.0, physicsClientId=c))
+        pos, _ = pb.getBasePositionAndOrientation(uid, physicsClientId=c)
+        pb.resetBasePositionAndOrientation(uid, [pos[0], pos[1], pos[2] + d["height"] - gap], orn, physicsClientId=c)
+        pb.resetBaseVelocity(uid, [0, 0, 0], list(d["omega"]), physicsClientId=c)
+        adapter = None
+        if msf:
+            adapter = PybulletAdapter(c, [PairSpec((uid, -1), (plane, -1), law_template(cell))],
+                                      edge_radii={(uid, -1): m["edge_radius"]})
+
+        def height():
+            return float(pb.getBasePositionAndOrientation(uid, physicsClientId=c)[0][2])
+
+        steps = int(round(d["duration"] / d["dt"]))
+        every = max(1, int(round(d["sample"] / d["dt"])))
+        t, zs, E = [0.0], [height()], [_pybullet_energy(c, uid)]
+        wall = time.perf_counter()
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            for k in range(1, steps + 1):
+                if adapter is None:
+                    pb.stepSimulation(physicsClientId=c)
+                else:
+                    adapter.step()
+                if k % every == 0 and (adapter is None or not np.any(adapter.manager.J != 0.0)):
+                    t.append(k * d["dt"]), zs.append(height())
+                    E.append(_pybullet_energy(c, uid) + (0.0 if adapter is None else adapter.manager.stored_energy()))
+        wall = (time.perf_counter() - wall) / steps
+        out = {"t": t, "z": zs, "E": E, "step_s": wall,
+               "warnings": sorted({str(w_.message)[:200] for w_ in caught})[:5]}
+        if adapter is not None:
+            recs = adapter.records
+            out.update(impacts=len(recs), outside=sum(bool(r.outside_validity) for r in recs),
+                       outside_examples=sorted({r.outside_validity[0][:160] for r in recs if r.outside_validity})[:3],
+                       laws=len(adapter.laws))
+        return out
+    finally:
+        pb.disconnect(c)
+
+
+RUNNERS = {"mujoco": run_mujoco, "pybullet": run_pybullet}
 
 
 def run_cell(cell: dict) -> list[dict]:
@@ -294,7 +379,7 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
             axes[0].plot(r["t"], r["z"], style, label=_label(r))
             axes[1].plot(r["t"], r["E"], style, label=_label(r))
         axes[0].set_ylabel("centre of mass height [m]")
-        axes[1].set_ylabel("kinetic + gravitational (+ MSF elastic) energy [J]")
+        axes[1].set_ylabel("energy [J] (kinetic, gravity, MSF elastic)")
         for ax in axes:
             ax.set_xlabel("t [s]")
             ax.grid(alpha=0.3)
