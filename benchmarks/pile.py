@@ -37,8 +37,8 @@ SIDE = 10  # spheres per lattice edge (SIDE**3 spheres)
 GAP = 1e-3  # between neighbouring spheres at the start [m]
 #: Pairs between spheres whose centres start within this many lattice spacings.
 NEIGHBOUR_SPACINGS = 1.75
-WARMUP = 30
-STEPS = 2
+WARMUP = 20
+STEPS = 1
 REPEATS = 3
 
 

@@ -182,6 +182,8 @@ class StepTracker:
             # semi-implicit: qpos advanced with the new velocity (a qvel written between steps
             # breaks that too)
             bad_q = np.abs(self._image(d.qvel, h) - d.qpos) > tol_q
+            if not bad_q.any():  # the usual case, without building the sets below
+                return ""
             bad_v = np.zeros(m.nv, dtype=bool)
         trees = set(self._qtree[bad_q].tolist()) | set(m.dof_treeid[bad_v].tolist())
         if trees:

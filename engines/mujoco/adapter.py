@@ -523,8 +523,8 @@ class MujocoAdapter(EngineAdapter):
         self._last_r = np.zeros((P, 6))
         self._last_gap = np.zeros(P, bool)
         self._fast = _FreeGroup.of(model, [p for p in self._pairs if _vectorisable(model, p)])
-        self._pp = np.zeros(P, bool)  # the free group's sphere-sphere pairs (_held_geometry)
-        self._pp[self._fast.index[~self._fast.plane]] = True
+        self._pp_idx = np.sort(self._fast.index[~self._fast.plane])  # the free group's sphere-sphere pairs
+        self._no_hold = np.zeros(P, bool)  # (_held_geometry)
         self._is_fast = np.zeros(P, bool)
         self._is_fast[self._fast.index] = True
         self.manager.own_gap[:] = self._is_fast  # free spheres: the manager's gaps are second order (_own_gaps)
@@ -568,7 +568,12 @@ class MujocoAdapter(EngineAdapter):
         self._p1, self._p2 = np.zeros((P, 3)), np.zeros((P, 3))  # this step's contact points on body 1, 2
         self._keys = keys
         self._push = np.full(P, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
-        self.manager.set_coupling(keys, self._coupling_blocks)
+        # islands need a moving body in two pairs (or two slots of one pair); without one (N spheres on a plate,
+        # the jet without particle-particle contacts) every contact is alone: no coupling, no push reach
+        moving = keys[keys >= 0]
+        self._shared = bool(moving.size != np.unique(moving).size)
+        if self._shared:
+            self.manager.set_coupling(keys, self._coupling_blocks)
         # islands' energy balance (engines._contacts.balance): free bodies only (a tree of one body on a
         # free joint); a link's drives and joint springs do work the probe does not see
         one = np.bincount(model.body_rootid, minlength=model.nbody) == 1
@@ -1085,7 +1090,8 @@ class MujocoAdapter(EngineAdapter):
         out: ContactForces = self.manager.step(self._mask(kin))
         self._last_kin, self._last_out = kin, out
         Qc = self._couples(out)
-        self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
+        if self._shared:
+            self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
         self.last_forces = out if kin.pair.size else None
         pair = np.asarray(out.pair, dtype=int)
         force = np.asarray(out.force, dtype=float)
@@ -1147,7 +1153,8 @@ class MujocoAdapter(EngineAdapter):
         out: ContactForces = mgr.step(self._mask(kin))
         self._last_kin, self._last_out = kin, out
         Qc = self._couples(out)
-        self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
+        if self._shared:
+            self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
         self.last_forces = out if kin.pair.size else None
         pair = np.asarray(out.pair, dtype=np.int64)
         force = np.asarray(out.force, dtype=float).reshape(-1, 3)
@@ -1199,7 +1206,11 @@ class MujocoAdapter(EngineAdapter):
         start read it (cor_n 0.979 instead of 0.993), and the correction of a contact inside one
         step was taken back at its point, with the wrong angular impulse (spin 10 % low)."""
         mgr = self.manager
-        hold = self._pp & required & (mgr.tau_est < self.timestep) & (mgr.active | np.any(mgr.J != 0.0, axis=1))
+        if self._pp_idx.size == 0:
+            return self._no_hold, mgr.n_in, mgr.x
+        q = self._pp_idx
+        hold = np.zeros(len(self._pairs), bool)
+        hold[q] = required[q] & (mgr.tau_est[q] < self.timestep) & (mgr.active[q] | np.any(mgr.J[q] != 0.0, axis=1))
         return hold, mgr.n_in, mgr.x
 
     def _lever(self, kin: ContactKinematics) -> np.ndarray | None:
