@@ -3,6 +3,7 @@ the numbers docs/jet.md quotes.
 
     .venv/bin/python scripts/jet_check.py reference     # plate impacts: cor_t, spin_out, W_diss_t, cor_n
     .venv/bin/python scripts/jet_check.py dense         # particle-particle records of the dense jet (MuJoCo)
+    .venv/bin/python scripts/jet_check.py pp-rate       # impacts per CPU-second with particle-particle contacts
 
 ``reference``: the jet of tests/test_jet.py (0.2 and 0.3 mm glass beads at
 30 +- 3 m/s on polyurethane, 45 deg axis, 20 deg cone, 2e4 particles/s,
@@ -110,14 +111,34 @@ def dense(impacts: int = 24) -> None:
               f"{r['island']} | {alone} |")
 
 
+def pp_rate(impacts: int = 300) -> None:
+    """experiments/configs/jet.toml's jet (45 deg, 20 deg cone, 30 +- 3 m/s, 1e5 particles/s, dt = 0.1 ms)
+    with one size class (0.25 mm) and particle-particle contacts, MuJoCo: impacts per CPU-second of the
+    pool (its own time.process_time), the pool size and the particle-particle records."""
+    a = math.radians(45.0)
+    spec = JetSpec(Nozzle.aimed((0.0, 0.0), (math.cos(a), 0.0, -math.sin(a)), 0.02, 20.0, 1e-3),
+                   Particles(preset("glass"), (2.5e-4,), (1.0,), 30.0, 3.0, 1e5), Plate(preset("polyurethane")),
+                   particle_particle=True, dt=1e-4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ValidityWarning)
+        with make_pool("mujoco", spec, 0) as pool:
+            pool.run(impacts)
+    c = pool.counts
+    print(f"{c.impacts} plate impacts, {c.pp_impacts} particle-particle records, pool {pool.n} "
+          f"({len(pool.pp_pairs)} particle-particle pairs), {pool.cpu_s:.1f} s CPU: "
+          f"{c.impacts / pool.cpu_s:.1f} impacts per CPU-second")
+
+
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("what", choices=("reference", "dense"))
+    ap.add_argument("what", choices=("reference", "dense", "pp-rate"))
     a = ap.parse_args(argv)
     if a.what == "reference":
         reference()
-    else:
+    elif a.what == "dense":
         dense()
+    else:
+        pp_rate()
 
 
 if __name__ == "__main__":
