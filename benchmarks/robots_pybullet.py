@@ -6,10 +6,12 @@ pybullet's own contact, under the same seeded random torques (uniform in
 each motor's MJCF torque range, gear x ctrlrange, seed 13) for STEPS steps,
 then STEPS steps with the torques off. Per record: the wall time per step
 of each variant and their ratio, the base height at the end of the
-torques, the MSF impact records, and the mechanical energy (kinetic +
-gravitational, :func:`engines.pybullet.robots.mechanical_energy`) over the
-rest phase (its largest rise above the rest phase's start after the first
-fifth). The MuJoCo variant is :mod:`benchmarks.robots`; ``make bench``
+torques, the MSF impact records, and the energy over the rest phase
+(kinetic + gravitational, :func:`engines.pybullet.robots.mechanical_energy`,
+plus with MSF the elastic energy held in the contacts,
+``ContactManager.stored_energy``; pybullet's own contact's penetration
+energy is outside its sum): its largest rise above the rest phase's start
+after the first fifth. The MuJoCo variant is :mod:`benchmarks.robots`; ``make bench``
 runs both.
 """
 
@@ -79,7 +81,7 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None) -
         E = []
         for _ in range(rest_steps):
             step()
-            E.append(mechanical_energy(c, robots))
+            E.append(mechanical_energy(c, robots) + (adapter.manager.stored_energy() if msf else 0.0))
         E = np.array(E)
         first = rest_steps // 5
         out.update(rest_energy_J=[float(E[0]), float(E[-1])],

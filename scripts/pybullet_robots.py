@@ -5,8 +5,9 @@ docs/engines.md quotes (issue 13):
     .venv/bin/python scripts/pybullet_robots.py ant          # ant.xml resting on its feet, 10, 1 and 0.2 ms
 
 Each run puts the body on a steel floor (natural rubber, gravity 9.81
-m/s^2), no torques, and prints the mechanical energy plus the elastic work
-stored in the active contacts (manager.W_el) at the start and the end, and
+m/s^2), no torques, and prints the mechanical energy plus the elastic
+energy held in the contacts (ContactManager.stored_energy) at the start and
+the end, and
 its largest rise above its running minimum: what a passive body resting on
 dissipative contacts must not show beyond rounding.
 """
@@ -33,9 +34,9 @@ def watch(c, ad, uids, seconds, dt) -> str:
     E = []
     for _ in range(int(round(seconds / dt))):
         ad.step()
-        E.append(mechanical_energy(c, uids) + float(np.sum(ad.manager.W_el[ad.manager.active])))
+        E.append(mechanical_energy(c, uids) + ad.manager.stored_energy())
     E = np.array(E)
-    return (f"E + W_el {E[0]:.6g} -> {E[-1]:.6g} J, largest rise above its running minimum "
+    return (f"E + stored {E[0]:.6g} -> {E[-1]:.6g} J, largest rise above its running minimum "
             f"{np.max(E - np.minimum.accumulate(E)):.3g} J")
 
 
