@@ -756,10 +756,11 @@ class PybulletAdapter(EngineAdapter):
         (M^-1 - M^-1 A^T (A M^-1 A^T)^-1 A M^-1, A the rows of those dofs):
         pybullet holds a joint at its limit with a rigid constraint inside the
         step, so a contact on a link beyond it moves what the held joint lets
-        move (measured: a foot of pybullet_data's ant with its ankle at the
-        limit moved 10-30 % less than J M^-1 J^T said; with the limit held,
-        or the joint inside its range, J M^-1 J^T P dt is the velocity change
-        pybullet gives to 1e-7 m/s)."""
+        move (measured: a foot of pybullet_data's ant with its ankles beyond
+        their limits moved 10-30 % less than J M^-1 J^T said; with its joints
+        inside their ranges J M^-1 J^T P dt is the velocity change pybullet
+        gives, tests/test_robots_pybullet.py). An approximation: pybullet's
+        limit is one-sided and pushes a joint beyond it back."""
         mb = self._multibody(uid)
         if mb[2] is None:
             Minv = np.linalg.inv(self._mass_matrix(uid))
