@@ -40,7 +40,12 @@ velocity change within the step, and gravity's potential is off by
 dt/2 |m g . dv| per body (``q`` of the probe: the gravity power m g . v, so
 the bound is dt/2 |q_end - q_start|). Islands that are not all free bodies
 (links of chains: joint springs and drives do work the probe does not see)
-are not checked (the adapters give no probe value for them).
+are not checked (the adapters give no probe value for them), nor is an
+island whose body jumped between the step and the next step start (placed
+or reset by the caller, seen by the adapters' jump detection:
+:meth:`IslandBalance.forget`; the jet's pool parks a particle whose impact
+is over by setting it moving at the park velocity, which read as a gain of
+up to its whole kinetic energy).
 """
 
 from __future__ import annotations
@@ -88,6 +93,7 @@ class IslandBalance:
         self.gains: list[tuple[float, tuple, float, float]] = []
         self.warned = False
         self.checked = 0  #: island steps checked
+        self.discarded = 0  #: island steps not checked: a body jumped before the step's end was read (forget)
 
     @staticmethod
     def stored(mgr, pp) -> float:
@@ -118,10 +124,17 @@ class IslandBalance:
                            scale))
 
     def forget(self, pairs) -> None:
-        """Drop the open islands holding any of ``pairs`` (their bodies' state
-        jumped: a reset, a placement; ContactManager.interrupt)."""
+        """Drop the open islands holding any of ``pairs`` (k,) (indices): their
+        bodies' state jumped between the step and the next step start (a
+        reset, a placement: ContactManager.interrupt, from the adapters' jump
+        detection), so a body's energy there was set from outside the step
+        (the jet's pool parks a bead whose impact is over by setting it
+        moving at the park velocity: up to its whole kinetic energy). Such an
+        island is not checked; counted in ``discarded``."""
         pairs = np.asarray(pairs)
-        self._open = [o for o in self._open if not np.any(np.isin(o[0], pairs))]
+        keep = [o for o in self._open if not np.any(np.isin(o[0], pairs))]
+        self.discarded += len(self._open) - len(keep)
+        self._open = keep
 
     def close(self, mgr, t_start: float) -> None:
         """At the start of the next step (the engine has applied the step):
