@@ -868,3 +868,37 @@ def required(active, Jst):
             out[m] = q
             m += 1
     return out[:m].copy()
+
+
+@jit
+def own_gaps(pair, x, xm_state, active, listed, own_gap, xdot, xd0, an, off, xd0_new, an_new, dt, settle_rate,
+             touch_tol, out):
+    """ContactManager._own_gaps per row (its docstring; the same arithmetic in
+    the same order): the gaps (k,) [m] the step starts from into ``out``; the
+    per-pair bound ``off`` and the step start's ``xd0``, ``an`` (P,) updated
+    in place from ``xd0_new``, ``an_new`` (k,) (computed by the caller, so the
+    dot products stay numpy's). The pairs are distinct (check). Returns the
+    number of rows that kept the manager's gap."""
+    kept = 0
+    half_dt = 0.5 * dt
+    decay = 1.0 - settle_rate
+    for i in range(pair.shape[0]):
+        p = pair[i]
+        xm = xm_state[p]
+        act = active[p]
+        lst = listed[p]
+        lead = half_dt * (abs(xdot[p] - xd0[p]) + abs(an[p]) * dt)
+        o = 0.0
+        if lst:
+            o = off[p] * (1.0 if act else decay) + lead
+        own = own_gap[p] and not act and lst and xm <= 0.0 and abs(x[i] - xm) <= 2.0 * o + touch_tol
+        off[p] = o if (act or own) else 0.0
+        xd0[p] = xd0_new[i]
+        an[p] = an_new[i]
+        if own:
+            g = xm + settle_rate * (x[i] - xm)
+            out[i] = g if (g < 0.0 or g != g) else 0.0  # np.minimum(g, 0.0), NaN kept
+            kept += 1
+        else:
+            out[i] = x[i]
+    return kept

@@ -303,3 +303,48 @@ def test_body_probe_batch_is_used_once_per_batch_between_steps():
     assert calls["batch"] == 1
     with pytest.raises(ValueError, match="batch"):
         eng.mgr.set_body_probe(probe, batch=42)
+
+
+def _own_gaps_numpy(pair, x, xm_state, active, listed, own_gap, xdot, xd0, an, off, xd0_new, an_new, dt, rate, tol):
+    """ContactManager._own_gaps as written in numpy before it was compiled (commit 23c1939)."""
+    xm = xm_state[pair]
+    act, lst = active[pair], listed[pair]
+    lead = 0.5 * dt * (np.abs(xdot[pair] - xd0[pair]) + np.abs(an[pair]) * dt)
+    o = np.where(lst, off[pair] * np.where(act, 1.0, 1.0 - rate) + lead, 0.0)
+    own = own_gap[pair] & ~act & lst & (xm <= 0.0) & (np.abs(x - xm) <= 2.0 * o + tol)
+    off[pair] = np.where(act | own, o, 0.0)
+    xd0[pair] = xd0_new
+    an[pair] = an_new
+    return np.where(own, np.minimum(xm + rate * (x - xm), 0.0), x), int(own.sum())
+
+
+def test_own_gaps_kernel_is_the_numpy_arithmetic_bit_for_bit():
+    """engines._kernel.own_gaps against its numpy form on random states where
+    about half the rows keep the manager's gap: the same gaps and the same
+    per-pair state, bit for bit (the same operations in the same order), so
+    compiling it changed no result."""
+    from engines import _kernel as K
+    from engines._contacts.islands import TOUCH_TOL
+
+    rng = np.random.default_rng(7)
+    P, k, dt, rate = 400, 300, 1e-3, 0.3
+    for _ in range(20):
+        pair = rng.permutation(P)[:k].astype(np.int64)
+        xm = np.where(rng.random(P) < 0.7, -rng.random(P) * 1e-4, rng.random(P) * 1e-5)
+        xm[rng.random(P) < 0.05] = 0.0
+        active, listed, own_gap = (rng.random(P) < 0.3), (rng.random(P) < 0.8), (rng.random(P) < 0.8)
+        xdot, xd0, an = rng.normal(size=P), rng.normal(size=P), rng.normal(size=P) * 10
+        off = rng.random(P) * 1e-4
+        x = xm[pair] + rng.normal(size=k) * 2e-4
+        xd0_new, an_new = rng.normal(size=k), rng.normal(size=k)
+        states = [[a.copy() for a in (xd0, an, off)] for _ in range(2)]
+        ref, n_ref = _own_gaps_numpy(pair, x, xm, active, listed, own_gap, xdot, *states[0], xd0_new, an_new, dt,
+                                     rate, TOUCH_TOL)
+        out = np.empty(k)
+        n_k = K.own_gaps(pair, x, xm, active, listed, own_gap, xdot, *states[1], xd0_new, an_new, dt, rate,
+                         TOUCH_TOL, out)
+        assert n_k == n_ref
+        assert 0 < n_ref < k
+        np.testing.assert_array_equal(out, ref)
+        for a, b in zip(*states):
+            np.testing.assert_array_equal(a, b)

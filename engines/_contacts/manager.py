@@ -424,20 +424,14 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         kept gap, whose sum decays by settle_rate), plus TOUCH_TOL: a larger
         difference is not the integrator's (a narrow phase's point beyond its
         margin, a face or point that changed) and the engine's gap is taken."""
-        xm = self.x[pair]
-        act, listed = self.active[pair], self._listed[pair]
-        lead = 0.5 * self.dt * (np.abs(self.xdot[pair] - self._xd0[pair]) + np.abs(self._an[pair]) * self.dt)
-        # the bound on the difference, accumulated while the manager's x is used (in contact, or a gap
-        # kept and relaxed by settle_rate); 0 where the engine's x was taken
-        off = np.where(listed, self._off[pair] * np.where(act, 1.0, 1.0 - self.settle_rate) + lead, 0.0)
-        own = self.own_gap[pair] & ~act & listed & (xm <= 0.0) & (np.abs(x - xm) <= 2.0 * off + TOUCH_TOL)
-        self._off[pair] = np.where(act | own, off, 0.0)
-        # this step's start, for the next step's lead
-        self._xd0[pair] = -_dot(v - self.dv_corr[pair], n)
-        self._an[pair] = -_dot(a, n)
-        if not np.any(own):
-            return x
-        return np.where(own, np.minimum(xm + self.settle_rate * (x - xm), 0.0), x)
+        # compiled (engines._kernel.own_gaps: one pass, no (k,) temporaries; the same arithmetic); the
+        # dot products stay numpy's
+        xd0_new = -_dot(v - self.dv_corr[pair], n)
+        an_new = -_dot(a, n)
+        out = np.empty_like(x)
+        K.own_gaps(pair, x, self.x, self.active, self._listed, self.own_gap, self.xdot, self._xd0, self._an,
+                   self._off, xd0_new, an_new, self.dt, self.settle_rate, TOUCH_TOL, out)
+        return out
 
     def held(self, pair, t_next: float) -> np.ndarray:
         """Which of the pairs ``pair`` (k,) hold their force into the next step
