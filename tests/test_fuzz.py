@@ -11,7 +11,6 @@ explicit regression cases (``CORPUS``)."""
 
 import json
 import math
-import time
 import tomllib
 from pathlib import Path
 
@@ -42,19 +41,17 @@ IDENTIFY_BASE = {"--tau": "2.7e-3", "--cor": "0.73", "--speed": "1", "--radius":
 
 
 def call(capsys, *argv):
-    """main(argv) in-process: (exit code, stdout, stderr lines that are not warnings, seconds)."""
-    t0 = time.perf_counter()
+    """main(argv) in-process: (exit code, stdout, stderr lines that are not warnings)."""
     try:
         code = cli.main(list(argv))
     except SystemExit as exc:
         code = exc.code
-    seconds = time.perf_counter() - t0
     out, err = capsys.readouterr()
     errors = [ln for ln in err.splitlines() if ln.strip() and ": warning: " not in ln]
-    return code, out, errors, seconds
+    return code, out, errors
 
 
-def assert_answered(code, out, errors, seconds, argv):
+def assert_answered(code, out, errors, argv):
     """Runs to finite output (exit 0) or is refused in one line (exit 2 input, 1 run failure)."""
     assert code in (0, 1, 2), (argv, code)
     if code == 0:
@@ -97,7 +94,7 @@ def test_identify_flag_answered(capsys, flag, value):
     args = dict(IDENTIFY_BASE)
     args[flag] = value
     argv = ["identify", *[x for kv in args.items() for x in kv], "--json"]
-    code, out, errors, seconds = call(capsys, *argv)
+    code, out, errors = call(capsys, *argv)
     assert code in (0, 1, 2), (argv, code)
     if code:
         assert len(errors) == 1 and errors[0].startswith("msf-contact"), (argv, errors)
@@ -153,9 +150,9 @@ CORPUS = [
 @pytest.mark.parametrize("argv", CORPUS, ids=" ".join)
 def test_corpus_refused_in_one_line(capsys, warm_engines, argv):
     """Each once hung, dumped usage, raised a traceback or printed absurd values."""
-    code, out, errors, seconds = call(capsys, *argv, "--json")
+    code, out, errors = call(capsys, *argv, "--json")
     assert code == 2, (argv, code, out)
-    assert_answered(code, out, errors, seconds, argv)
+    assert_answered(code, out, errors, argv)
 
 
 # ------------------------------------------------------------ public API ---
@@ -173,7 +170,6 @@ def test_public_api_answers(E, tan_delta, radius, mass, speed, angle, spin, law)
 
     from msf_contact import Body, ContactPair, Curvature, Material, make_law, simulate_impact
 
-    t0 = time.perf_counter()
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # validity warnings: the record says what they say
@@ -221,7 +217,6 @@ def test_every_scenario_key_validated(key, value):
         node = node[k]
     node[path[-1]] = value
     scenario = get_scenario(raw["scenario"])
-    t0 = time.perf_counter()
     try:
         cfg = scenario.load(raw, name)
         cells = list(scenario.cells(cfg))
@@ -241,7 +236,7 @@ def test_an_unexpected_exception_is_one_line_and_exit_1(capsys, monkeypatch):
     from dataclasses import replace
 
     monkeypatch.setitem(cli.COMMANDS, "impact", replace(cli.COMMANDS["impact"], run=broken))
-    code, out, errors, _ = call(capsys, "impact")
+    code, out, errors = call(capsys, "impact")
     assert code == 1 and len(errors) == 1 and errors[0].startswith("msf-contact: error: KeyError")
     monkeypatch.setenv("MSF_CONTACT_TRACEBACK", "1")
     with pytest.raises(KeyError):
