@@ -26,6 +26,27 @@ def log(msg: str) -> None:
     print(f"[bench] {msg}", file=sys.stderr, flush=True)
 
 
+def run_robots(engine: str, label: str, models, steps: int, measure, describe) -> list[dict]:
+    """The robot benchmarks' loop (benchmarks/robots.py, robots_pybullet.py):
+    ``measure(name, steps)`` for each model, its lines ``describe(record)``
+    logged (``engine`` in the records, ``label`` in the log); a model that fails is recorded as failed (with the reason) and
+    does not lose the others."""
+    out = []
+    for name in models:
+        log(f"robots: {name} in {label}, {steps} steps of seeded torques, then {steps} at rest")
+        try:
+            r = measure(name, steps)
+        except Exception as exc:  # noqa: BLE001 - one model failing must not lose the other
+            log(f"  failed: {type(exc).__name__}: {exc}")
+            out.append({"name": "robots", "engine": engine, "model": name, "failed": True,
+                        "reason": f"{type(exc).__name__}: {exc}"[:300]})
+            continue
+        for line in describe(r):
+            log(line)
+        out.append(r)
+    return out
+
+
 def median_time(fn, repeats: int, clock=time.perf_counter) -> tuple[float, list[float]]:
     """Median time [s] of ``repeats`` calls of fn() (each timed alone) by
     ``clock``: wall time by default, ``time.process_time`` for the CPU time

@@ -29,7 +29,7 @@ import time
 
 import numpy as np
 
-from ._common import log
+from ._common import log, run_robots
 
 STEPS = 1000
 QUICK_STEPS = 100
@@ -149,27 +149,20 @@ def standing(name: str, steps: int = STAND_STEPS) -> dict:
     return out
 
 
-def run(quick: bool = False) -> list[dict]:
-    steps = QUICK_STEPS if quick else STEPS
-    out = []
-    for name in MODELS:
-        log(f"robots: {name} in MuJoCo, {steps} steps of seeded torques, then {steps} at rest")
-        try:
-            r = measure(name, steps)
-        except Exception as exc:  # noqa: BLE001 - one model failing must not lose the other
-            log(f"  failed: {type(exc).__name__}: {exc}")
-            out.append({"name": "robots", "engine": "mujoco", "model": name, "failed": True,
-                        "reason": f"{type(exc).__name__}: {exc}"[:300]})
-            continue
-        log(f"  rest, largest step rise: msf {r['msf_rest_step_rise_free_J']:.3g} J without a joint limit acting, "
+def _describe(r: dict) -> list[str]:
+    return [f"  rest, largest step rise: msf {r['msf_rest_step_rise_free_J']:.3g} J without a joint limit acting, "
             f"{r['msf_rest_step_rise_limits_J']:.3g} J with; built-in {r['builtin_rest_step_rise_free_J']:.3g}, "
-            f"{r['builtin_rest_step_rise_limits_J']:.3g} J")
-        log(f"  msf {r['msf_step_median_s'] * 1e3:.2f} ms, builtin {r['builtin_step_median_s'] * 1e3:.3f} ms per step "
+            f"{r['builtin_rest_step_rise_limits_J']:.3g} J",
+            f"  msf {r['msf_step_median_s'] * 1e3:.2f} ms, builtin {r['builtin_step_median_s'] * 1e3:.3f} ms per step "
             f"(medians; ratio {r['ratio_median_msf_over_builtin']:.0f}, load {r['load_avg_1min']:.1f}); "
-            f"rest energy rise msf {r['msf_rest_energy_rise_J']:.3g} J")
-        out.append(r)
-        st = standing(name)
-        log(f"  standing, no torque, {STAND_STEPS} steps: base msf {st['msf_base_height_m']:.4f} m, built-in "
+            f"rest energy rise msf {r['msf_rest_energy_rise_J']:.3g} J"]
+
+
+def run(quick: bool = False) -> list[dict]:
+    out = run_robots("mujoco", "MuJoCo", MODELS, QUICK_STEPS if quick else STEPS, measure, _describe)
+    for r in [r for r in out if not r.get("failed")]:
+        st = standing(r["model"])
+        log(f"  {r['model']} standing, no torque, {STAND_STEPS} steps: base msf {st['msf_base_height_m']:.4f} m, built-in "
             f"{st['builtin_base_height_m']:.4f} m; built-in contact distances "
             f"{[round(1e3 * d, 2) for d in st['builtin_contact_dist_m']]} mm, MSF approaches "
             f"{[round(1e3 * x, 3) for x in st['msf_approach_m']]} mm")

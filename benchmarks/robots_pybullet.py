@@ -22,7 +22,7 @@ import time
 
 import numpy as np
 
-from ._common import log
+from ._common import run_robots
 
 STEPS = 1000
 QUICK_STEPS = 100
@@ -106,19 +106,10 @@ def measure(name: str, steps: int) -> dict:
     return out
 
 
+def _describe(r: dict) -> list[str]:
+    return [f"  msf {r['msf_step_s'] * 1e3:.2f} ms, builtin {r['builtin_step_s'] * 1e3:.3f} ms per step; "
+            f"rest energy rise msf {r['msf_rest_energy_rise_J']:.3g} J, builtin {r['builtin_rest_energy_rise_J']:.3g} J"]
+
+
 def run(quick: bool = False) -> list[dict]:
-    steps = QUICK_STEPS if quick else STEPS
-    out = []
-    for name in MODELS:
-        log(f"robots: {name} in pybullet, {steps} steps of seeded torques, then {steps} at rest")
-        try:
-            r = measure(name, steps)
-        except Exception as exc:  # noqa: BLE001 - one model failing must not lose the other
-            log(f"  failed: {type(exc).__name__}: {exc}")
-            out.append({"name": "robots", "engine": "pybullet", "model": name, "failed": True,
-                        "reason": f"{type(exc).__name__}: {exc}"[:300]})
-            continue
-        log(f"  msf {r['msf_step_s'] * 1e3:.2f} ms, builtin {r['builtin_step_s'] * 1e3:.3f} ms per step; "
-            f"rest energy rise msf {r['msf_rest_energy_rise_J']:.3g} J, builtin {r['builtin_rest_energy_rise_J']:.3g} J")
-        out.append(r)
-    return out
+    return run_robots("pybullet", "pybullet", MODELS, QUICK_STEPS if quick else STEPS, measure, _describe)
