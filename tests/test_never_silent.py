@@ -61,7 +61,10 @@ def test_mujoco_bead_runs_without_autoreset():
     """The command line's scene disables the autoreset; the acceleration is
     real and the impact completes with a finite record."""
     pytest.importorskip("mujoco")
-    ad = _bead_in_mujoco(autoreset=False)
+    with pytest.warns(ValidityWarning, match=r"pair 0 \(ball, plate\), dt = 1e-05 s: x_max/R = .* small-strain") as caught:
+        ad = _bead_in_mujoco(autoreset=False)
+    # said on stderr too, once for the pair
+    assert sum("small-strain" in str(w.message) and "pair 0" in str(w.message) for w in caught) == 1
     (rec,) = ad.records
     assert 0.6 < rec.cor_n < 0.8
     # 0.41 R deep: the engine's record says so too (it was empty at 0.74 R)

@@ -124,6 +124,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         #: checked against ROTATION_PER_STEP_MAX (set_orientation_free)
         self.orientation_free = np.zeros((P, 2), bool)
         self._rotation_warned = np.zeros(P, bool)
+        self._strain_warned = np.zeros(P, bool)  # x_max/R or 2R note said on stderr once per pair
         self._init_state(P)
         self.records: list[ImpactRecord] = []
         self._pending: list[list] = []  # [pair, record, spin axis, steps waited]

@@ -143,6 +143,12 @@ class Records:
         strain = small_strain_note(x_m, law.geom.R)
         if strain:
             outside.append(strain)
+        if outside and not self._strain_warned[p]:
+            # the record says it; stderr says it too, once per pair
+            self._strain_warned[p] = True
+            warnings.warn(f"pair {p} ({self.pair_names[p][0]}, {self.pair_names[p][1]}), dt = {self.dt:g} s: "
+                          + "; ".join(outside) + " (warned once per pair; every record carries it in outside_validity)",
+                          ValidityWarning, stacklevel=2)
         if self._gain_note[p]:
             outside.append(self._gain_note[p])
         gain = self._energy_gain(p, vin, v_out, lu, yl[_WT])
