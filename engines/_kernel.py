@@ -369,6 +369,31 @@ def tangent_basis(n, T):
 
 
 @jit
+def tangential_w_max(n, W, out, T):
+    """The largest eigenvalue of T W T, T = I - n n^T, per row into out (k,)
+    [1/kg]: n (k, 3) unit normals, W (k, 3, 3) symmetric (to round-off)
+    inverse inertias. T W T has the eigenvalue 0 along n; its other two are
+    those of the symmetric 2x2 block B_ij = t_i . W t_j in the tangent basis
+    (tangent_basis), the larger one (B11 + B22)/2 + sqrt(((B11 - B22)/2)^2 +
+    B12^2) (no cancellation under the root; B12 the mean of the two
+    off-diagonal products, as numpy's eigvalsh reads one triangle of a
+    matrix symmetric to round-off). T (2, 3): scratch."""
+    for r in range(n.shape[0]):
+        tangent_basis(n[r], T)
+        b00 = b01 = b10 = b11 = 0.0
+        for i in range(3):
+            w0 = W[r, i, 0] * T[0, 0] + W[r, i, 1] * T[0, 1] + W[r, i, 2] * T[0, 2]  # (W t1)_i
+            w1 = W[r, i, 0] * T[1, 0] + W[r, i, 1] * T[1, 1] + W[r, i, 2] * T[1, 2]  # (W t2)_i
+            b00 += T[0, i] * w0
+            b01 += T[0, i] * w1
+            b10 += T[1, i] * w0
+            b11 += T[1, i] * w1
+        half = 0.5 * (b00 - b11)
+        off = 0.5 * (b01 + b10)
+        out[r] = 0.5 * (b00 + b11) + math.sqrt(half * half + off * off)
+
+
+@jit
 def _solve3(A3, ia, B, ib, iout, M):
     """B[iout] = A3[ia]^-1 B[ib] for a 3x3 matrix (Gaussian elimination with
     partial pivoting, M (3, 4) scratch); returns False when it is singular."""

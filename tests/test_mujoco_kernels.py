@@ -337,3 +337,61 @@ def test_coincident_centres_refused_alike():
             ad.step(1)
         msgs.append(str(exc.value))
     assert msgs[0] == msgs[1]
+
+
+def test_off_image_is_the_step_trackers_numpy_test():
+    """engines.mujoco._kernels.off_image (the step tracker's usual case in one
+    pass) answers as the numpy test it replaced, any(|image - qpos| >
+    JUMP_VTOL h (1 + max |qvel|) + 1e-13 (1 + |q0|)), on random states: the
+    image itself, one coordinate moved just past and just inside the bound,
+    and NaN in qvel (every tolerance NaN: nothing compares off) or in qpos."""
+    from engines.mujoco._kernels import off_image
+    from engines.mujoco._stepping import JUMP_VTOL
+
+    rng = np.random.default_rng(5)
+    h = 1e-3
+
+    def numpy_off(img, qpos, q0, qvel):
+        vmax = float(np.max(np.abs(qvel)))
+        return bool(np.any(np.abs(img - qpos) > JUMP_VTOL * h * (1.0 + vmax) + 1e-13 * (1.0 + np.abs(q0))))
+
+    seen = set()
+    for trial in range(200):
+        nq = int(rng.integers(1, 60))
+        q0, qvel = rng.normal(size=nq), rng.normal(size=nq) * 10.0
+        img = q0 + h * qvel
+        qpos = img.copy()
+        i = int(rng.integers(nq))
+        tol = JUMP_VTOL * h * (1.0 + np.max(np.abs(qvel))) + 1e-13 * (1.0 + abs(q0[i]))
+        kind = trial % 5
+        if kind == 1:
+            qpos[i] += 1.5 * tol
+        elif kind == 2:
+            qpos[i] += 0.5 * tol
+        elif kind == 3:
+            qvel[i] = np.nan
+            qpos[i] += 1.0
+        elif kind == 4:
+            qpos[i] = np.nan
+        want = numpy_off(img, qpos, q0, qvel)
+        assert off_image(img, qpos, q0, qvel, h, JUMP_VTOL) == want
+        seen.add(want)
+    assert seen == {True, False}
+
+
+def test_probe_angular_velocity_is_mj_object_velocity():
+    """The adapter's body probe reads a body's angular velocity from cvel; it
+    is bit for bit what mj_objectVelocity(..., flg_local=0) returns (which it
+    replaced), for a spinning, tumbling free sphere and the world body."""
+    m, d = scenes.ball_on_plate(Body.sphere(RUBBER, 0.02), 1.0, 45.0, 50.0, gap=0.01, dt=1e-4, gravity=G)
+    adapter = MujocoAdapter(m, d, [PairSpec("ball", "plate", _law(RUBBER, 0.02, STEEL, math.inf))])
+    d.qvel[3:6] = [3.0, -7.0, 11.0]
+    d.qvel[0:3] = [0.5, 0.2, -1.0]
+    for _ in range(5):
+        mujoco.mj_step(m, d)
+    mujoco.mj_forward(m, d)
+    for b in range(m.nbody):
+        res = np.zeros(6)
+        mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, b, res, 0)
+        np.testing.assert_array_equal(adapter._angular_velocity(b), res[:3])
+    assert np.any(adapter._angular_velocity(m.nbody - 1) != 0.0)

@@ -61,7 +61,8 @@ class Records:
         size = self._group_size[g]
         o_new = {}
         for key, val in o.items():
-            val = np.broadcast_to(np.asarray(val, dtype=float), (pp.size,))
+            if not (type(val) is np.ndarray and val.dtype == np.float64 and val.shape == pp.shape):
+                val = np.broadcast_to(np.asarray(val, dtype=float), (pp.size,))  # a law's scalar or list
             o_new[key] = val
             if key not in store:
                 store[key] = np.full(size, np.nan)
@@ -72,8 +73,8 @@ class Records:
         tau_n = _duration_estimate(law, o, m, v_used)
         x_est = cf.hertz_x_max(m, v_used, law.moduli.E, law.geom.R)
         k_t, _ = law.tangential_stiffness(x_est, o_new)
-        T = np.eye(3) - n[:, :, None] * n[:, None, :]
-        w_t = np.linalg.eigvalsh(T @ W @ T)[:, -1]
+        w_t = np.empty(pp.size)  # the largest eigenvalue of T W T, T = I - n n^T
+        K.tangential_w_max(n, W, w_t, np.empty((2, 3)))
         with np.errstate(divide="ignore"):
             tau_t = np.where(k_t.max(axis=1) * w_t > 0, math.pi / np.sqrt(k_t.max(axis=1) * w_t), np.inf)
         self.tau_est[pp] = tau_n

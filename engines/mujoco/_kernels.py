@@ -52,20 +52,22 @@ def _nonneg(v):
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _iinv(R, i, j, iI0, iI1, iI2):
-    """(R diag(1/I) R^T)_ij as (R * (1/I)) @ R^T sums it (R row-major (9,))."""
-    return ((R[3 * i] * iI0) * R[3 * j] + (R[3 * i + 1] * iI1) * R[3 * j + 1]) + (R[3 * i + 2] * iI2) * R[3 * j + 2]
+def _iinv(X, b, i, j, iI0, iI1, iI2):
+    """(R diag(1/I) R^T)_ij as (R * (1/I)) @ R^T sums it (R = X[b] row-major (9,), indexed in
+    place: a row slice costs a reference count per call)."""
+    return (((X[b, 3 * i] * iI0) * X[b, 3 * j] + (X[b, 3 * i + 1] * iI1) * X[b, 3 * j + 1])
+            + (X[b, 3 * i + 2] * iI2) * X[b, 3 * j + 2])
 
 
 @njit(cache=True, error_model="numpy", inline="always")
-def _inverse_inertia(W, k, R, iI0, iI1, iI2, r0, r1, r2, inv_m, add):
-    """W[k] (+)= 1/m Id - [r]x I^-1 [r]x with I^-1 = R diag(1/I) R^T (R
+def _inverse_inertia(W, k, X, b, iI0, iI1, iI2, r0, r1, r2, inv_m, add):
+    """W[k] (+)= 1/m Id - [r]x I^-1 [r]x with I^-1 = R diag(1/I) R^T (R = X[b]
     row-major (9,), 1/I = iI): the products of the numpy path's matmuls
     (R * (1/I)) @ R^T, [r]x @ I^-1, (.) @ [r]x, without the terms with
     the zeros of [r]x (adding an exact zero changes nothing)."""
-    I00, I01, I02 = _iinv(R, 0, 0, iI0, iI1, iI2), _iinv(R, 0, 1, iI0, iI1, iI2), _iinv(R, 0, 2, iI0, iI1, iI2)
-    I10, I11, I12 = _iinv(R, 1, 0, iI0, iI1, iI2), _iinv(R, 1, 1, iI0, iI1, iI2), _iinv(R, 1, 2, iI0, iI1, iI2)
-    I20, I21, I22 = _iinv(R, 2, 0, iI0, iI1, iI2), _iinv(R, 2, 1, iI0, iI1, iI2), _iinv(R, 2, 2, iI0, iI1, iI2)
+    I00, I01, I02 = _iinv(X, b, 0, 0, iI0, iI1, iI2), _iinv(X, b, 0, 1, iI0, iI1, iI2), _iinv(X, b, 0, 2, iI0, iI1, iI2)
+    I10, I11, I12 = _iinv(X, b, 1, 0, iI0, iI1, iI2), _iinv(X, b, 1, 1, iI0, iI1, iI2), _iinv(X, b, 1, 2, iI0, iI1, iI2)
+    I20, I21, I22 = _iinv(X, b, 2, 0, iI0, iI1, iI2), _iinv(X, b, 2, 1, iI0, iI1, iI2), _iinv(X, b, 2, 2, iI0, iI1, iI2)
     # A = [r]x I^-1, rows of [r]x: (0, -r2, r1), (r2, 0, -r0), (-r1, r0, 0)
     A00, A01, A02 = -r2 * I10 + r1 * I20, -r2 * I11 + r1 * I21, -r2 * I12 + r1 * I22
     A10, A11, A12 = r2 * I00 + -r0 * I20, r2 * I01 + -r0 * I21, r2 * I02 + -r0 * I22
@@ -137,19 +139,20 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
     # detection first, for all pairs: refuse before changing any state
     plane_g = -1
     pn0, pn1, pn2 = 0.0, 0.0, 1.0
+    # (MjData rows are indexed in place, not sliced: a slice costs a reference count)
     for g in range(k):
-        c = geom_xpos[gi[g, I_G1]]
-        o = geom_xpos[gi[g, I_G2]]
+        ig1, ig2 = gi[g, I_G1], gi[g, I_G2]
+        c0, c1, c2 = geom_xpos[ig1, 0], geom_xpos[ig1, 1], geom_xpos[ig1, 2]
+        o0, o1, o2 = geom_xpos[ig2, 0], geom_xpos[ig2, 1], geom_xpos[ig2, 2]
         R = gf[g, F_R1]
-        if not (np.isfinite(c[0]) and np.isfinite(c[1]) and np.isfinite(c[2])
-                and np.isfinite(o[0]) and np.isfinite(o[1]) and np.isfinite(o[2])):
+        if not (np.isfinite(c0) and np.isfinite(c1) and np.isfinite(c2)
+                and np.isfinite(o0) and np.isfinite(o1) and np.isfinite(o2)):
             return ERR_NONFINITE, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
                 W_com[:0], a_ext[:0], p1, p2
         if gi[g, I_PLANE]:
             g2 = gi[g, I_G2]
             if g2 != plane_g:  # the plane's unit normal, once per plane in a row of pairs
-                mat = geom_xmat[g2]
-                u0, u1, u2 = mat[2], mat[5], mat[8]
+                u0, u1, u2 = geom_xmat[g2, 2], geom_xmat[g2, 5], geom_xmat[g2, 8]
                 if not (np.isfinite(u0) and np.isfinite(u1) and np.isfinite(u2)):
                     return ERR_NONFINITE, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
                         W_com[:0], a_ext[:0], p1, p2
@@ -160,11 +163,11 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
                 pn0, pn1, pn2 = u0 / ln, u1 / ln, u2 / ln
                 plane_g = g2
             n0, n1, n2 = pn0, pn1, pn2
-            dist = (c[0] - o[0]) * n0 + (c[1] - o[1]) * n1 + (c[2] - o[2]) * n2
+            dist = (c0 - o0) * n0 + (c1 - o1) * n1 + (c2 - o2) * n2
             xx = R - dist
         else:
             R2 = gf[g, F_R2]
-            e0, e1, e2 = c[0] - o[0], c[1] - o[1], c[2] - o[2]
+            e0, e1, e2 = c0 - o0, c1 - o1, c2 - o2
             dist = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
             if dist <= coincident_rtol * (R + R2):
                 return ERR_COINCIDENT, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
@@ -179,17 +182,16 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
                 ns[g, 0], ns[g, 1], ns[g, 2] = m0, m1, m2
                 s1 = R - 0.5 * (xw if xw > 0.0 else 0.0)
                 s2 = R2 - 0.5 * (xw if xw > 0.0 else 0.0)
-                p1[g, 0], p1[g, 1], p1[g, 2] = c[0] - s1 * m0, c[1] - s1 * m1, c[2] - s1 * m2
-                p2[g, 0], p2[g, 1], p2[g, 2] = o[0] + s2 * m0, o[1] + s2 * m1, o[2] + s2 * m2
+                p1[g, 0], p1[g, 1], p1[g, 2] = c0 - s1 * m0, c1 - s1 * m1, c2 - s1 * m2
+                p2[g, 0], p2[g, 1], p2[g, 2] = o0 + s2 * m0, o1 + s2 * m1, o2 + s2 * m2
                 continue
             if xx < 0.0:
                 # closing within the step: the geometry at first touch (engines._sweep), from the
                 # velocities of the two centres
                 b1, b2 = gi[g, I_B1], gi[g, I_B2]
-                r1c = subtree_com[gi[g, I_ROOT1]]
-                r2c = subtree_com[gi[g, I_ROOT2]]
-                f0, f1, f2 = c[0] - r1c[0], c[1] - r1c[1], c[2] - r1c[2]
-                h0, h1, h2 = o[0] - r2c[0], o[1] - r2c[1], o[2] - r2c[2]
+                r1, r2 = gi[g, I_ROOT1], gi[g, I_ROOT2]
+                f0, f1, f2 = c0 - subtree_com[r1, 0], c1 - subtree_com[r1, 1], c2 - subtree_com[r1, 2]
+                h0, h1, h2 = o0 - subtree_com[r2, 0], o1 - subtree_com[r2, 1], o2 - subtree_com[r2, 2]
                 w0 = ((cvel[b1, 3] + (cvel[b1, 1] * f2 - cvel[b1, 2] * f1))
                       - (cvel[b2, 3] + (cvel[b2, 1] * h2 - cvel[b2, 2] * h1)))
                 w1 = ((cvel[b1, 4] + (cvel[b1, 2] * f0 - cvel[b1, 0] * f2))
@@ -200,27 +202,26 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
                 if sw:
                     xs[g] = xw
                     ns[g, 0], ns[g, 1], ns[g, 2] = m0, m1, m2
-                    p1[g, 0], p1[g, 1], p1[g, 2] = c[0] - R * m0, c[1] - R * m1, c[2] - R * m2
-                    p2[g, 0], p2[g, 1], p2[g, 2] = o[0] + R2 * m0, o[1] + R2 * m1, o[2] + R2 * m2
+                    p1[g, 0], p1[g, 1], p1[g, 2] = c0 - R * m0, c1 - R * m1, c2 - R * m2
+                    p2[g, 0], p2[g, 1], p2[g, 2] = o0 + R2 * m0, o1 + R2 * m1, o2 + R2 * m2
                     continue
         xs[g] = xx
         ns[g, 0], ns[g, 1], ns[g, 2] = n0, n1, n2
         # Detection.of_sphere: body 1's surface point at the overlap's middle, body 2's across the gap
         s1 = R - 0.5 * (xx if xx > 0.0 else 0.0)
         s2 = xx if xx < 0.0 else 0.0
-        q0, q1, q2 = c[0] - s1 * n0, c[1] - s1 * n1, c[2] - s1 * n2
+        q0, q1, q2 = c0 - s1 * n0, c1 - s1 * n1, c2 - s1 * n2
         p1[g, 0], p1[g, 1], p1[g, 2] = q0, q1, q2
         p2[g, 0], p2[g, 1], p2[g, 2] = q0 + s2 * n0, q1 + s2 * n1, q2 + s2 * n2
     n = 0
     for g in range(k):
         b1, b2 = gi[g, I_B1], gi[g, I_B2]
-        c1c = subtree_com[gi[g, I_ROOT1]]
-        c2c = subtree_com[gi[g, I_ROOT2]]
+        r1, r2 = gi[g, I_ROOT1], gi[g, I_ROOT2]
         # angular (0:3), linear velocity at the subtree com (3:6)
         wa0, wa1, wa2, ua0, ua1, ua2 = cvel[b1, 0], cvel[b1, 1], cvel[b1, 2], cvel[b1, 3], cvel[b1, 4], cvel[b1, 5]
         wb0, wb1, wb2, ub0, ub1, ub2 = cvel[b2, 0], cvel[b2, 1], cvel[b2, 2], cvel[b2, 3], cvel[b2, 4], cvel[b2, 5]
-        c10, c11, c12 = c1c[0], c1c[1], c1c[2]
-        c20, c21, c22 = c2c[0], c2c[1], c2c[2]
+        c10, c11, c12 = subtree_com[r1, 0], subtree_com[r1, 1], subtree_com[r1, 2]
+        c20, c21, c22 = subtree_com[r2, 0], subtree_com[r2, 1], subtree_com[r2, 2]
         q10, q11, q12 = p1[g, 0], p1[g, 1], p1[g, 2]
         q20, q21, q22 = p2[g, 0], p2[g, 1], p2[g, 2]
         d10, d11, d12 = q10 - c10, q11 - c11, q12 - c12
@@ -267,10 +268,10 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
         a_ext[n, 0], a_ext[n, 1], a_ext[n, 2] = a0, a1, a2
         x10, x11, x12 = xipos[b1, 0], xipos[b1, 1], xipos[b1, 2]
         x20, x21, x22 = xipos[b2, 0], xipos[b2, 1], xipos[b2, 2]
-        _inverse_inertia(W, n, ximat[b1], gf[g, F_INVI1], gf[g, F_INVI1 + 1], gf[g, F_INVI1 + 2],
+        _inverse_inertia(W, n, ximat, b1, gf[g, F_INVI1], gf[g, F_INVI1 + 1], gf[g, F_INVI1 + 2],
                          q10 - x10, q11 - x11, q12 - x12, gf[g, F_INV_M1], False)
         if gi[g, I_FREE2]:
-            _inverse_inertia(W, n, ximat[b2], gf[g, F_INVI2], gf[g, F_INVI2 + 1], gf[g, F_INVI2 + 2],
+            _inverse_inertia(W, n, ximat, b2, gf[g, F_INVI2], gf[g, F_INVI2 + 1], gf[g, F_INVI2 + 2],
                              q20 - x20, q21 - x21, q22 - x22, gf[g, F_INV_M2], True)
         wc = gf[g, F_INV_M1] + gf[g, F_INV_M2]
         W_com[n, 0, 0], W_com[n, 1, 1], W_com[n, 2, 2] = wc, wc, wc
@@ -333,10 +334,9 @@ def apply(q, xipos, xanchor, xmat, bodies, F, r):
     linear dofs, (anchor-to-point x F) in body axes on the angular ones."""
     for j in range(bodies.shape[0]):
         b, jn, a = bodies[j, 0], bodies[j, 1], bodies[j, 2]
-        pos, anc, R = xipos[b], xanchor[jn], xmat[b]
-        e0 = pos[0] + r[j, 0] - anc[0]
-        e1 = pos[1] + r[j, 1] - anc[1]
-        e2 = pos[2] + r[j, 2] - anc[2]
+        e0 = xipos[b, 0] + r[j, 0] - xanchor[jn, 0]
+        e1 = xipos[b, 1] + r[j, 1] - xanchor[jn, 1]
+        e2 = xipos[b, 2] + r[j, 2] - xanchor[jn, 2]
         f0, f1, f2 = F[j, 0], F[j, 1], F[j, 2]
         c0 = e1 * f2 - e2 * f1
         c1 = e2 * f0 - e0 * f2
@@ -345,7 +345,7 @@ def apply(q, xipos, xanchor, xmat, bodies, F, r):
         q[a + 1] += f1
         q[a + 2] += f2
         for i in range(3):  # xmat^T (e x F)
-            q[a + 3 + i] += (R[i] * c0 + R[3 + i] * c1) + R[6 + i] * c2
+            q[a + 3 + i] += (xmat[b, i] * c0 + xmat[b, 3 + i] * c1) + xmat[b, 6 + i] * c2
 
 
 @njit(cache=True, error_model="numpy", inline="always")
@@ -429,3 +429,24 @@ def after_step(gi, group_of, pair, force, active, settled, t_onset, tau_est, t_n
     if n_hit == n_kept:
         held_dv(last_dv, pair, keep, W, force, dt)
     return hit, keep, n_hit, n_hit - n_kept, bodies, F, arm
+
+
+@njit(cache=True, error_model="numpy")
+def off_image(q_img, qpos, q0, qvel, h, vtol):
+    """Whether any coordinate of qpos is off the step's image q_img (nq,):
+    |q_img - qpos| > vtol h (1 + max |qvel|) + 1e-13 (1 + |q0|), the test of
+    engines.mujoco._stepping.StepTracker for the semi-implicit integrators,
+    in one pass (a NaN anywhere compares False, as numpy's)."""
+    vmax = 0.0
+    nan = False
+    for i in range(qvel.shape[0]):  # branch-free loops (vectorised)
+        a = abs(qvel[i])
+        nan |= a != a
+        vmax = a if a > vmax else vmax
+    if nan:  # np.max propagates NaN: every tolerance is NaN, no coordinate compares off
+        return False
+    tq = vtol * h * (1.0 + vmax)
+    off = False
+    for i in range(qpos.shape[0]):
+        off |= abs(q_img[i] - qpos[i]) > tq + 1e-13 * (1.0 + abs(q0[i]))
+    return off

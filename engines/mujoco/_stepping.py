@@ -60,6 +60,8 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
+from engines.mujoco._kernels import off_image
+
 #: A new step's state must be the integrator's image of the last start state
 #: to this velocity tolerance [m/s or rad/s per dof], relative to 1 + |qvel|
 #: (qpos: JUMP_VTOL h (1 + max |qvel|)). The image is recomputed with
@@ -163,6 +165,12 @@ class StepTracker:
         """'' if (qpos, qvel) is the integrator's step from the start state,
         else what differs (and the trees that differ in ``jumped``)."""
         m = self.model
+        if not rk4 and m.nv:
+            # the usual semi-implicit step (no coordinate off the image) in one compiled pass,
+            # the same test as below without its temporaries
+            qvel = d.qvel
+            if not off_image(self._image(qvel, h), d.qpos, self.q0, qvel, h, JUMP_VTOL):
+                return ""
         vmax = float(np.max(np.abs(d.qvel))) if m.nv else 0.0
         tol_q = JUMP_VTOL * h * (1.0 + vmax) + 1e-13 * (1.0 + np.abs(self.q0))
         if rk4:
@@ -182,8 +190,6 @@ class StepTracker:
             # semi-implicit: qpos advanced with the new velocity (a qvel written between steps
             # breaks that too)
             bad_q = np.abs(self._image(d.qvel, h) - d.qpos) > tol_q
-            if not bad_q.any():  # the usual case, without building the sets below
-                return ""
             bad_v = np.zeros(m.nv, dtype=bool)
         trees = set(self._qtree[bad_q].tolist()) | set(m.dof_treeid[bad_v].tolist())
         if trees:

@@ -1468,9 +1468,10 @@ class MujocoAdapter(EngineAdapter):
         return dq[0]
 
     def _angular_velocity(self, body: int) -> np.ndarray:
-        res = np.zeros(6)
-        mujoco.mj_objectVelocity(self.model, self.data, mujoco.mjtObj.mjOBJ_BODY, body, res, 0)
-        return res[:3].copy()
+        """The body's angular velocity in world axes [rad/s] (3,): cvel's angular part, which
+        is what mj_objectVelocity(..., flg_local=0) copies (MuJoCo's mju_transformSpatial
+        moves only the linear part), without its call and (6,) buffer."""
+        return self.data.cvel[body, :3].copy()
 
     def _com_velocity(self, body: int) -> np.ndarray:
         """Velocity of the body's centre of mass [m/s] (3,): from cvel, the
