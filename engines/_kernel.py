@@ -326,27 +326,42 @@ def _root(kind, code, lc, oc, p, n, T, W, Wc, a, paper, Lr, y0, h, lo, hi, g_lo,
     if hi - lo <= root_tol or g_hi == 0:
         return hi
     for _ in range(root_iter):
-        den = g_lo - g_hi
-        th = lo + g_lo * (hi - lo) / den if den > 0 else 0.5 * (lo + hi)
-        if den > 0 and th >= hi:
+        th, at_hi = illinois_next(lo, hi, g_lo, g_hi)
+        if at_hi:
             return hi
-        if th <= lo or th >= hi:
-            th = 0.5 * (lo + hi)
         rk4(code, lc, oc, p, n, T, W, Wc, a, paper, Lr, y0, th * h, tmp, work, buf, True)
         gt = _gfun(kind, code, lc, oc, p, n, tmp, xs, Bs, fz)
-        if gt > 0:
-            if side == 1:
-                g_hi *= 0.5
-            lo, g_lo = th, gt
-            side = 1
-        else:
-            if side == -1:
-                g_lo *= 0.5
-            hi, g_hi = th, gt
-            side = -1
+        lo, hi, g_lo, g_hi, side = illinois_update(th, gt, lo, hi, g_lo, g_hi, side)
         if hi - lo <= root_tol or g_hi == 0:
             break
     return hi
+
+
+@jit_inline
+def illinois_next(lo, hi, g_lo, g_hi):
+    """The next trial th of Illinois regula falsi on [lo, hi] (g(lo) > 0 >= g(hi)):
+    the secant's root, bisection where it stalls at an end; (th, True) when
+    the secant lands on hi (hi is the root to rounding: the caller returns hi)."""
+    den = g_lo - g_hi
+    th = lo + g_lo * (hi - lo) / den if den > 0 else 0.5 * (lo + hi)
+    if den > 0 and th >= hi:
+        return th, True
+    if th <= lo or th >= hi:
+        th = 0.5 * (lo + hi)
+    return th, False
+
+
+@jit_inline
+def illinois_update(th, gt, lo, hi, g_lo, g_hi, side):
+    """The bracket after g(th) = gt: (lo, hi, g_lo, g_hi, side), the value at the
+    end that stays twice in a row halved (Illinois)."""
+    if gt > 0:
+        if side == 1:
+            g_hi *= 0.5
+        return th, hi, gt, g_hi, 1
+    if side == -1:
+        g_lo *= 0.5
+    return lo, th, g_lo, gt, -1
 
 
 @jit

@@ -217,21 +217,7 @@ def step_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq, 
     dt = mgr.dt
     k = p.size
     act = mgr.active[p].copy()
-    # the engine's velocities include last step's timing corrections (own and the neighbours')
-    v = v - mgr.dv_corr[p]
-    vc = vc - mgr.dvc_corr[p]
-    y = np.zeros((k, NY))
-    x0 = np.where(act, mgr.x[p], x_eng)
-    settle = act & resting
-    x0 = np.where(settle, x0 + mgr.settle_rate * (x_eng - x0), x0)
-    y[:, _X] = x0
-    y[:, _V] = v
-    y[:, _VC] = vc
-    s = mgr.s[p]
-    s_t = s - _dot(s, n)[:, None] * n
-    ls, lt = np.linalg.norm(s, axis=1), np.linalg.norm(s_t, axis=1)
-    y[:, _S] = np.where((lt > 0)[:, None], s_t * (ls / np.where(lt > 0, lt, 1.0))[:, None], 0.0)
-    y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT] = mgr.W_el[p], mgr.W_visc[p], mgr.Q_t[p], mgr.W_t[p]
+    y = initial_state(mgr, p, x_eng, n, v, vc, resting)
     isl = _Island(mgr, p, n, W, Wc, a, cp, cq, Wpq, Wcpq)
     rows = _Rows(n, W, a)
     in_c = act.copy()
@@ -340,16 +326,54 @@ def step_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq, 
             t_loc = dt
     else:
         raise RuntimeError(f"more than {MAX_SEGMENTS} contact onsets/separations in one step of {dt!r} s")
-    # write back (as ContactManager._step_group)
+    return write_back(mgr, p, n, W, Wc, y, in_c, t0, cp, cq, Wpq, Wcpq)
+
+
+def initial_state(mgr, p, x_eng, n, v, vc, resting) -> np.ndarray:
+    """The state y (k, NY) of island rows p (k,) at the step start: the
+    engine's velocities less the last step's timing corrections (own and the
+    neighbours'), x the manager's for rows in contact (relaxed toward the
+    engine's x_eng for resting rows (k,) bool), the tangential displacement
+    re-projected onto the current tangent plane, the works carried on.
+    Shared by step_island and the compiled path (engines._contacts.island_compiled)."""
+    k = p.size
+    act = mgr.active[p]
+    v = v - mgr.dv_corr[p]
+    vc = vc - mgr.dvc_corr[p]
+    y = np.zeros((k, NY))
+    x0 = np.where(act, mgr.x[p], x_eng)
+    settle = act & resting
+    x0 = np.where(settle, x0 + mgr.settle_rate * (x_eng - x0), x0)
+    y[:, _X] = x0
+    y[:, _V] = v
+    y[:, _VC] = vc
+    s = mgr.s[p]
+    s_t = s - _dot(s, n)[:, None] * n
+    ls, lt = np.linalg.norm(s, axis=1), np.linalg.norm(s_t, axis=1)
+    y[:, _S] = np.where((lt > 0)[:, None], s_t * (ls / np.where(lt > 0, lt, 1.0))[:, None], 0.0)
+    y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT] = mgr.W_el[p], mgr.W_visc[p], mgr.Q_t[p], mgr.W_t[p]
+    return y
+
+
+def write_back(mgr, p, n, W, Wc, y, in_c, t0, cp, cq, Wpq, Wcpq) -> np.ndarray:
+    """Write the island rows' end state y (k, NY) back (as
+    ContactManager._step_group) and return the step's impulses (k, 3) [N s]:
+    P + J - J_previous with the timing correction J, whose velocity offset
+    dv_corr holds the coupling terms W_pq J_q of the neighbours (cp, cq (b,)
+    rows of p, Wpq, Wcpq (b, 3, 3)). Shared by step_island and the compiled path."""
+    dt = mgr.dt
+    k = p.size
     mgr.active[p] = in_c
     mgr.x[p] = y[:, _X]
-    mgr.xdot[p] = isl.xdot(y)
+    mgr.xdot[p] = -_dot(y[:, _V], n)
     mgr.s[p] = y[:, _S]
     mgr.vc[p] = y[:, _VC]
     mgr.W_el[p], mgr.W_visc[p], mgr.Q_t[p], mgr.W_t[p] = y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT]
     mgr.phase[p] = np.where(mgr.xdot[p] < 0, 1, 0)
-    for _g, law, idx, _b in isl.groups:
-        mgr.outside[p[idx]] |= law.outside(np.maximum(y[idx, _X], 0.0)) & in_c[idx]
+    gid = mgr._group_of[p]
+    for g in np.unique(gid):
+        idx = np.flatnonzero(gid == g)
+        mgr.outside[p[idx]] |= mgr._groups[g].outside(np.maximum(y[idx, _X], 0.0)) & in_c[idx]
     J = y[:, _PI] / dt - 0.5 * y[:, _P] if mgr.timing_correction else np.zeros((k, 3))
     mgr.settled[p] = False
     if mgr.history:

@@ -21,6 +21,7 @@ from .compiled import CompiledPath, kernel_law
 from .records import Records
 from .reference import NumpyPath
 from .balance import IslandBalance
+from .island_compiled import island_blocks, step_islands
 from .islands import TOUCH_TOL, islands, step_island
 from .state import (
     L_G0, L_ON, L_W01, L_W11, L_XREF, NL, NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES,
@@ -106,6 +107,10 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         #: per law group: (code, constants) of the compiled kernel, or None (numpy path)
         self.compiled = bool(compiled)
         self._kernel_law = {g: (kernel_law(law) if self.compiled else None) for g, law in self._groups.items()}
+        #: islands whose rows' laws all have a kernel code go through the compiled island kernel
+        #: (engines._contacts.island_compiled; False: every island through the numpy step_island,
+        #: the reference it is tested against)
+        self.island_compiled = self.compiled
         # the kernel's laws: pair -> index into _kcodes/_kLC (-1: numpy path); all of them in one kernel call
         kgs = [g for g in self._groups if self._kernel_law[g] is not None]
         self._kcodes = np.array([self._kernel_law[g][0] for g in kgs], dtype=np.int64)
@@ -569,36 +574,40 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             out = self._step_rows(pair[alone], x[alone], n[alone], point[alone], v[alone], vc[alone], W[alone],
                                   Wc[alone], a[alone], t0, info, None if L is None else L[alone])
             force[alone] = out.force
-        keys_all, blocks = self._coupling
-        for lab in np.unique(multi[multi >= 0]):
-            r = np.flatnonzero(multi == lab)
-            pp = pair[r]
-            keys = keys_all[pp]
-            # the row pairs of the island that share a moving body
-            cp, cq = [], []
-            for i in range(r.size):
-                for j in range(r.size):
-                    if i != j and np.any((keys[i][:, None] == keys[j][None, :]) & (keys[i][:, None] >= 0)):
-                        cp.append(i)
-                        cq.append(j)
-            cp, cq = np.array(cp, dtype=np.int64), np.array(cq, dtype=np.int64)
-            Wpq, Wcpq = blocks(pp[cp], pp[cq])
-            Wpq = as_array(Wpq, (3, 3))
-            Wcpq = as_array(Wcpq, (3, 3))
-            # a neighbour's force held last step is in this row's a_ext as its prediction; the island
-            # now couples that neighbour explicitly, so take the prediction out (no double count)
-            a_r = a[r].copy()
-            Fh = self._held_force[pp[cq]]
-            if np.any(Fh):
-                np.add.at(a_r, cp, -np.einsum("bij,bj->bi", Wpq, Fh))
-            info["island_rows"] += int(r.size)
-            self.in_island[pp] = True
-            self._island_contact[pp] = True  # contacts that begin in it: Records._begin
-            if self._balance is not None:
-                bk = np.unique(keys[keys >= 0])
-                self._balance.open(self, pp, bk, IslandBalance.stored(self, pp))
-            P = step_island(self, pp, x[r], n[r], v[r], vc[r], W[r], Wc[r], a_r, t0, info, cp, cq, Wpq, Wcpq,
-                            self._rest_rows[r])
+        keys_all = self._coupling[0]
+        R, io, cio, cp, cq, Wpq, Wcpq, a_R = island_blocks(self, pair, multi, a)
+        pp_all = pair[R]
+        info["island_rows"] += int(R.size)
+        self.in_island[pp_all] = True
+        self._island_contact[pp_all] = True  # contacts that begin in it: Records._begin
+        if self._balance is not None:
+            for i in range(io.size - 1):
+                pp = pp_all[io[i]:io[i + 1]]
+                keys = keys_all[pp]
+                self._balance.open(self, pp, np.unique(keys[keys >= 0]), IslandBalance.stored(self, pp))
+        # the compiled path for the islands whose every row's law the kernel knows (island_compiled)
+        kern = np.zeros(io.size - 1, bool)
+        if self.island_compiled:
+            kern = np.logical_and.reduceat(self._kg_of_pair[pp_all] >= 0, io[:-1]) if R.size else kern
+        if np.any(kern):
+            sel = np.flatnonzero(kern)
+            rows = np.concatenate([np.arange(io[i], io[i + 1]) for i in sel])
+            sizes = np.diff(io)[sel]
+            io_k = np.r_[0, np.cumsum(sizes)].astype(np.int64)
+            ent = np.concatenate([np.arange(cio[i], cio[i + 1]) for i in sel]).astype(np.int64)
+            remap = np.full(R.size, -1, np.int64)
+            remap[rows] = np.arange(rows.size)
+            ncb = np.diff(cio)[sel]
+            cio_k = np.r_[0, np.cumsum(ncb)].astype(np.int64)
+            r = R[rows]
+            P = step_islands(self, pair[r], x[r], n[r], v[r], vc[r], W[r], Wc[r], a_R[rows], t0, info, io_k, cio_k,
+                             remap[cp[ent]], remap[cq[ent]], Wpq[ent], Wcpq[ent], self._rest_rows[r])
+            force[r] = P / self.dt
+        for i in np.flatnonzero(~kern):  # the numpy reference, island by island
+            r = R[io[i]:io[i + 1]]
+            e = slice(cio[i], cio[i + 1])
+            P = step_island(self, pair[r], x[r], n[r], v[r], vc[r], W[r], Wc[r], a_R[io[i]:io[i + 1]], t0, info,
+                            cp[e] - io[i], cq[e] - io[i], Wpq[e], Wcpq[e], self._rest_rows[r])
             force[r] = P / self.dt
         self.last_step_info = info
         return ContactForces(force=force, point=point.copy(), pair=pair.copy())

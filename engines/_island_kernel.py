@@ -1,0 +1,386 @@
+"""Compiled (numba) twin of :func:`engines._contacts.islands.step_island`:
+the islands of one engine step integrated in one call.
+
+The numpy :func:`~engines._contacts.islands.step_island` is the readable
+reference (read it first); this kernel repeats its algorithm island by
+island with scalar arithmetic, reusing the per-row right-hand side of
+:mod:`engines._kernel` (``rhs``, ``forces``, ``indicator``, ``free_flight``)
+and adding the coupling of the island's rows (the adapter's blocks):
+
+    dy[cp, V]  += W_pq  f[cq]     (W_pq  = J_p M^-1 J_q^T)
+    dy[cp, VC] += Wc_pq f[cq]     (Wc_pq = J_c,p M^-1 J_q^T)
+
+Per island, segment by segment as step_island: the rows that begin now
+(touching with a closing speed, or touching at rest while the island has a
+contact), free flight of the whole island to its first onset when no row is
+in contact, otherwise classical RK4 of the whole island at the internal step
+of its stiffest contact (``min(h_p, _stiff_step)``), with the first maximum
+compressions located inside a substep and the earliest end or onset of the
+island found by Illinois root finding on a partial RK4 step of the whole
+island (no Coulomb slip correction: step_island's RK4 has none).
+
+The islands are stored CSR-style: the rows of island i are io[i]..io[i+1]-1
+of the (k, ...) row arrays, its coupling entries cio[i]..cio[i+1]-1 of cp,
+cq (global row indices), W_pq, Wc_pq (b, 3, 3). :func:`advance_islands`
+moves every island until it is over or stops at an onset (``law.onset`` is
+Python: the caller begins the rows with status ST_ONSET and calls again) or
+an end (the caller writes the records of the rows with ST_ENDED, by
+ended_by, and calls again); the island's state is then the one at that
+instant, its time t_loc[i]. The caller (engines._contacts.island_compiled)
+sets up y and writes the state back as step_island does.
+
+The moving contact point (the lever, state.LEVER_DOC) is frozen over the
+step in an island on both paths (step_island takes no lever): the rows get
+a zero lever row L0. Allocates nothing (scratch from the caller), as
+engines._kernel.
+"""
+
+from __future__ import annotations
+
+import math
+
+from . import _kernel as K
+from ._kernel import LC_FZ, NY, PI, VC, WEL, WVI, X, V, P, ST_DONE, ST_ENDED, ST_ONSET, END_FORCE, END_OVERLAP, jit
+
+# island status (ist)
+IS_RUN, IS_DONE, IS_STOP, IS_OVER = 0, 1, 2, 3
+# columns of the row scratch sc (k, NSC)
+SC_LO, SC_XD0, SC_XD1, SC_G0, SC_G1, SC_TH, SC_EV = range(7)
+NSC = 7
+EV_NONE, EV_END, EV_ON = 0, 1, 2
+
+
+@jit
+def _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, dy, F,
+         buf, want):
+    """dy/dt of the island's rows r0..r1-1 (step_island's _Island.rhs):
+    rows in contact by engines._kernel.rhs, the others moving freely
+    (x' = -(v . n), v' = v_c' = a), then the coupling terms of entries
+    cb0..cb1-1. With want, F[r] = (F_n, |F_t|) at y."""
+    for r in range(r0, r1):
+        if in_c[r]:
+            kr = kg[r]
+            Fn, Ft = K.rhs(codes[kr], LC[kr], oc, pairs[r], n[r], T[r], W[r], Wc[r], a[r], paper[r], L0, y[r], dy[r],
+                           buf, want)
+        else:
+            for j in range(NY):
+                dy[r, j] = 0.0
+            dy[r, X] = -(y[r, V] * n[r, 0] + y[r, V + 1] * n[r, 1] + y[r, V + 2] * n[r, 2])
+            for i in range(3):
+                dy[r, V + i] = a[r, i]
+                dy[r, VC + i] = a[r, i]
+                dy[r, PI + i] = y[r, P + i]
+            Fn = Ft = 0.0
+        if want:
+            F[r, 0] = Fn
+            F[r, 1] = Ft
+    for b in range(cb0, cb1):
+        pr, qr = cp[b], cq[b]
+        f0, f1, f2 = dy[qr, P], dy[qr, P + 1], dy[qr, P + 2]
+        for i in range(3):
+            dy[pr, V + i] += Wpq[b, i, 0] * f0 + Wpq[b, i, 1] * f1 + Wpq[b, i, 2] * f2
+            dy[pr, VC + i] += Wcpq[b, i, 0] * f0 + Wcpq[b, i, 1] * f1 + Wcpq[b, i, 2] * f2
+
+
+@jit
+def _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, h, out,
+         work, F, buf, k1_ready):
+    """One classical RK4 step of the island of length h from y into out (rows
+    r0..r1-1); F[r] = (F_n, |F_t|) at y unless k1_ready (work[0] then holds
+    the slope at y from an earlier call from the same y). work (5, k, NY)."""
+    k1, k2, k3, k4, yt = work[0], work[1], work[2], work[3], work[4]
+    if not k1_ready:
+        _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, k1, F,
+             buf, True)
+    for r in range(r0, r1):
+        for j in range(NY):
+            yt[r, j] = y[r, j] + 0.5 * h * k1[r, j]
+    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, yt, k2, F,
+         buf, False)
+    for r in range(r0, r1):
+        for j in range(NY):
+            yt[r, j] = y[r, j] + 0.5 * h * k2[r, j]
+    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, yt, k3, F,
+         buf, False)
+    for r in range(r0, r1):
+        for j in range(NY):
+            yt[r, j] = y[r, j] + h * k3[r, j]
+    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, yt, k4, F,
+         buf, False)
+    for r in range(r0, r1):
+        for j in range(NY):
+            out[r, j] = y[r, j] + h / 6.0 * (k1[r, j] + 2.0 * k2[r, j] + 2.0 * k3[r, j] + k4[r, j])
+
+
+@jit
+def _xd(Y, r, n):
+    return -(Y[r, V] * n[r, 0] + Y[r, V + 1] * n[r, 1] + Y[r, V + 2] * n[r, 2])
+
+
+@jit
+def _g_end(code, lc, oc, p, Y, r, n, xs, Bs):
+    """step_island's _g_end_row: x/x_s, and for force-zero laws min(x/x_s, B/B_s) while separating."""
+    gx = Y[r, X] / xs
+    if lc[LC_FZ] == 0.0:
+        return gx
+    xd = _xd(Y, r, n)
+    gb = K.indicator(code, lc, oc, p, max(Y[r, X], 0.0), xd) / Bs if xd < 0 else 1.0
+    return min(gx, gb)
+
+
+@jit
+def _root(kind, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c,
+          y, h, lo, hi, g_lo, g_hi, xs, Bs, tmp, work, F, buf, root_iter, root_tol):
+    """Illinois regula falsi for th in [lo, hi], g(lo) > 0 >= g(hi), g of row r at
+    the island state rk4(y, th h) (engines._contacts.reference._find_root for
+    one row): kind 0 x' (maximum compression), 1 the end function _g_end,
+    2 -min(x, x') (an onset). y is the substep's start, its slope in work[0]."""
+    side = 0
+    if hi - lo <= root_tol or g_hi == 0:
+        return hi
+    code, lc, p = codes[kg[r]], LC[kg[r]], pairs[r]
+    for _ in range(root_iter):
+        th, at_hi = K.illinois_next(lo, hi, g_lo, g_hi)
+        if at_hi:
+            return hi
+        _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y,
+             th * h, tmp, work, F, buf, True)
+        if kind == 0:
+            gt = _xd(tmp, r, n)
+        elif kind == 1:
+            gt = _g_end(code, lc, oc, p, tmp, r, n, xs, Bs)
+        else:
+            gt = -min(tmp[r, X], _xd(tmp, r, n))
+        lo, hi, g_lo, g_hi, side = K.illinois_update(th, gt, lo, hi, g_lo, g_hi, side)
+        if hi - lo <= root_tol or g_hi == 0:
+            break
+    return hi
+
+
+@jit
+def _stiff_step(r0, r1, pairs, n, W, kg, codes, LC, oc, in_c, y, buf, substeps):
+    """step_island's _stiff_step: pi sqrt(m/k) / substeps over the rows in
+    contact with x > 0, k = 1.5 F_el(x)/x, m = 1/(n W n) [s]."""
+    hs = math.inf
+    for r in range(r0, r1):
+        if not in_c[r] or not y[r, X] > 0:
+            continue
+        x = y[r, X]
+        K.forces(codes[kg[r]], LC[kg[r]], oc, pairs[r], x, 0.0, buf)
+        kk = 1.5 * max(buf[0], 0.0) / x
+        nWn = 0.0
+        for i in range(3):
+            for j in range(3):
+                nWn += n[r, i] * W[r, i, j] * n[r, j]
+        tau = math.pi / math.sqrt(kk * nWn) if kk > 0 else math.inf
+        hs = min(hs, tau / substeps)
+    return hs
+
+
+@jit
+def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq,
+            Wcpq, t0, dt, hp, y, in_c, t_loc, phase, nseg, status, ended_by, turned, fl, ints, buf, work, Y1, Yt, tmp,
+            F, sc):
+    """Move island i on from t_loc[i] (module docstring); returns IS_DONE,
+    IS_STOP (rows with status ST_ONSET/ST_ENDED for the caller) or IS_OVER
+    (more than max_segments segments)."""
+    r0, r1 = io[i], io[i + 1]
+    cb0, cb1 = cio[i], cio[i + 1]
+    riter, rtol = int(cst[K.C_RITER]), cst[K.C_RTOL]
+    for r in range(r0, r1):
+        status[r] = ST_DONE
+    while True:
+        if phase[i] == 0:  # a new segment
+            nseg[i] += 1
+            if nseg[i] > max_segments:
+                return IS_OVER
+            if dt - t_loc[i] <= 0.0:
+                return IS_DONE
+            # contacts that begin now (x >= 0 with a closing speed; touching at rest while the island pushes)
+            any_in = False
+            for r in range(r0, r1):
+                any_in = any_in or in_c[r]
+            nnow = 0
+            for r in range(r0, r1):
+                if in_c[r]:
+                    continue
+                xr, xd = y[r, X], _xd(y, r, n)
+                if xr >= 0 and xd >= 0 and (xr > 0 or xd > 0 or any_in):
+                    status[r] = ST_ONSET
+                    nnow += 1
+            if nnow:
+                phase[i] = 1  # the caller begins them; this segment then goes on
+                return IS_STOP
+        phase[i] = 0
+        rem = dt - t_loc[i]
+        any_in = False
+        for r in range(r0, r1):
+            any_in = any_in or in_c[r]
+        if not any_in:
+            # no force acts: every row moves freely, the first onset (if any) ends the segment
+            t_first = math.inf
+            for r in range(r0, r1):
+                for j in range(NY):
+                    tmp[r, j] = y[r, j]
+                tc = K.free_flight(n[r], a[r], L0, tmp[r], rem)
+                sc[r, SC_LO] = tc
+                if tc < t_first:
+                    t_first = tc
+            if not math.isfinite(t_first):
+                for r in range(r0, r1):
+                    K.free_flight(n[r], a[r], L0, y[r], rem)
+                t_loc[i] = dt
+                return IS_DONE
+            for r in range(r0, r1):
+                K.free_flight(n[r], a[r], L0, y[r], t_first)
+            t_loc[i] += t_first
+            for r in range(r0, r1):
+                if sc[r, SC_LO] <= t_first:
+                    status[r] = ST_ONSET
+            return IS_STOP
+        h_isl = math.inf
+        for r in range(r0, r1):
+            if in_c[r]:
+                h_isl = min(h_isl, hp[pairs[r]])
+        h_isl = min(h_isl, _stiff_step(r0, r1, pairs, n, W, kg, codes, LC, oc, in_c, y, buf, substeps))
+        nsub = max(1, int(math.ceil(rem / h_isl - 1e-9)))
+        h = rem / nsub
+        for _s in range(nsub):
+            _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, h,
+                 Y1, work, F, buf, False)
+            ints[2] += 1
+            for r in range(r0, r1):
+                sc[r, SC_LO] = 0.0
+                sc[r, SC_XD0] = _xd(y, r, n)
+                sc[r, SC_XD1] = _xd(Y1, r, n)
+                if not in_c[r]:
+                    continue
+                # peak force and friction ratio at the substep start (step_island's _peaks)
+                p = pairs[r]
+                Fn, Ft = F[r, 0], F[r, 1]
+                if Fn > fl[K.F_FMAX, p]:
+                    fl[K.F_XATF, p] = y[r, X]
+                fl[K.F_FMAX, p] = max(fl[K.F_FMAX, p], Fn)
+                if Fn >= cst[K.C_FRATIO] * fl[K.F_FMAX, p] and Fn > 0:
+                    ratio = Ft / Fn
+                    fl[K.F_FMIN, p] = min(fl[K.F_FMIN, p], ratio)
+                    fl[K.F_FMAXR, p] = max(fl[K.F_FMAXR, p], ratio)
+            # first maximum compression of rows in contact (no change of the island's forces)
+            for r in range(r0, r1):
+                p = pairs[r]
+                xd0, xd1 = sc[r, SC_XD0], sc[r, SC_XD1]
+                if in_c[r] and not turned[p] and xd0 > 0 and xd1 <= 0:
+                    th = _root(0, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq,
+                               Wpq, Wcpq, in_c, y, h, 0.0, 1.0, xd0, xd1, 1.0, 1.0, tmp, work, F, buf, riter, rtol)
+                    _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq,
+                         in_c, y, th * h, Yt, work, F, buf, True)
+                    turned[p] = True
+                    fl[K.F_TAU1, p] = t0 + t_loc[i] + th * h - fl[K.F_TONSET, p]
+                    fl[K.F_XTURN, p] = Yt[r, X]
+                    fl[K.F_XMAX, p] = max(fl[K.F_XMAX, p], Yt[r, X])
+                    fl[K.F_WELC, p] = Yt[r, WEL]
+                    fl[K.F_WVIC, p] = Yt[r, WVI]
+                    sc[r, SC_LO] = th
+            # ends of rows in contact, onsets of rows not in contact
+            nev = 0
+            for r in range(r0, r1):
+                sc[r, SC_EV] = EV_NONE
+                xd0, xd1 = sc[r, SC_XD0], sc[r, SC_XD1]
+                if in_c[r]:
+                    p = pairs[r]
+                    fl[K.F_XMAX, p] = max(fl[K.F_XMAX, p], Y1[r, X])
+                    if xd1 < 0:
+                        kr = kg[r]
+                        end = Y1[r, X] <= 0
+                        if not end and LC[kr, LC_FZ] != 0.0:
+                            end = K.indicator(codes[kr], LC[kr], oc, p, max(Y1[r, X], 0.0), xd1) <= 0
+                        if end:
+                            sc[r, SC_EV] = EV_END
+                            nev += 1
+                else:
+                    g0 = min(y[r, X], xd0)
+                    g1 = min(Y1[r, X], xd1)
+                    if g0 < 0 and g1 >= 0:
+                        sc[r, SC_EV] = EV_ON
+                        sc[r, SC_G0] = g0
+                        sc[r, SC_G1] = g1
+                        nev += 1
+            if nev == 0:
+                for r in range(r0, r1):
+                    for j in range(NY):
+                        y[r, j] = Y1[r, j]
+                t_loc[i] += h
+                continue
+            # the earliest event of the island
+            th_star = math.inf
+            for r in range(r0, r1):
+                if sc[r, SC_EV] != EV_END:
+                    continue
+                kr, p = kg[r], pairs[r]
+                code, lc = codes[kr], LC[kr]
+                lo = sc[r, SC_LO]
+                if lo > 0:
+                    _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq,
+                         in_c, y, lo * h, Yt, work, F, buf, True)
+                    Ylo = Yt
+                else:
+                    Ylo = y
+                xs = Ylo[r, X] if Ylo[r, X] > 0 else 1.0
+                B = abs(K.indicator(code, lc, oc, p, max(Ylo[r, X], 0.0), _xd(Ylo, r, n)))
+                Bs = B if B > 0 else 1.0
+                g_lo = _g_end(code, lc, oc, p, Ylo, r, n, xs, Bs)
+                if 1e-300 > g_lo:  # Python's max(g, 1e-300)
+                    g_lo = 1e-300
+                g_hi = _g_end(code, lc, oc, p, Y1, r, n, xs, Bs)
+                th = _root(1, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq,
+                           Wcpq, in_c, y, h, lo, 1.0, g_lo, g_hi, xs, Bs, tmp, work, F, buf, riter, rtol)
+                sc[r, SC_TH] = th
+                if th < th_star:
+                    th_star = th
+            for r in range(r0, r1):
+                if sc[r, SC_EV] != EV_ON:
+                    continue
+                th = _root(2, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq,
+                           Wcpq, in_c, y, h, 0.0, 1.0, -sc[r, SC_G0], -sc[r, SC_G1], 1.0, 1.0, tmp, work, F, buf,
+                           riter, rtol)
+                sc[r, SC_TH] = th
+                if th < th_star:
+                    th_star = th
+            _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y,
+                 th_star * h, Yt, work, F, buf, True)
+            t_loc[i] = t_loc[i] + th_star * h
+            for r in range(r0, r1):
+                for j in range(NY):
+                    y[r, j] = Yt[r, j]
+                ev = sc[r, SC_EV]
+                if ev == EV_NONE or sc[r, SC_TH] > th_star + 1e-12:
+                    continue
+                if ev == EV_END:
+                    status[r] = ST_ENDED
+                    fz = LC[kg[r], LC_FZ] != 0.0
+                    ended_by[r] = END_FORCE if (fz and y[r, X] > 0) else END_OVERLAP
+                else:
+                    status[r] = ST_ONSET
+            return IS_STOP
+        t_loc[i] = dt  # the segment ran to the step's end
+
+
+@jit
+def advance_islands(cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp,
+                    cq, Wpq, Wcpq, t0, dt, hp, y, in_c, t_loc, phase, nseg, ist, status, ended_by, turned, fl, ints,
+                    buf, work, Y1, Yt, tmp, F, sc):
+    """Move every island whose ist is IS_RUN (module docstring); ist[i]
+    becomes IS_DONE, IS_STOP (the caller handles its rows' status and sets
+    it back to IS_RUN) or IS_OVER. Returns the number of islands stopped
+    (IS_STOP or IS_OVER)."""
+    stopped = 0
+    for i in range(io.shape[0] - 1):
+        if ist[i] != IS_RUN:
+            continue
+        st = _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc,
+                     cp, cq, Wpq, Wcpq, t0, dt, hp, y, in_c, t_loc, phase, nseg, status, ended_by, turned, fl, ints,
+                     buf, work, Y1, Yt, tmp, F, sc)
+        ist[i] = st
+        if st != IS_DONE:
+            stopped += 1
+    return stopped
