@@ -24,7 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from msf_contact.curvature import SurfaceCurvature, relative_curvature
-from msf_contact.geometry import Curvature
+from msf_contact import closed_forms as cf
+from msf_contact._validate import SMALL_STRAIN_X_OVER_R
+from msf_contact.geometry import Curvature, SideFootprint
+from msf_contact.laws import MSFLaw
 from msf_contact.shapes import DEFAULT_EDGE_RADIUS, Box, Capsule, Cylinder, Ellipsoid, Mesh, Sphere
 
 #: The law's effective radii must match the contact's to this share: an
@@ -267,3 +270,227 @@ class LawBank:
 
     def __len__(self) -> int:
         return len(self._laws)
+
+
+# ------------------------------------------------------------ line contact ---
+#: A capsule's or cylinder's side lying on a plane is carried as a *line
+#: contact* (issue 13 item 3; :class:`SideEndLaw`) below this tilt of its
+#: axis from the plane [rad]; above it by the engine's points (the end
+#: spheres, the rim points) with their point laws. At a tilt theta the side
+#: touches only once an end's approach exceeds e (1 - cos theta) (e: the
+#: end's radius, a capsule's radius or a cylinder's edge radius); at
+#: acos(1 - SMALL_STRAIN_X_OVER_R) = 25.8 deg that is the end's own
+#: small-strain bound (x/e = 0.1, msf_contact._validate), so above it, for
+#: every approach the model covers, an end's line law *is* its point law
+#: (exactly): the hand-off changes no force.
+LINE_TILT_MAX = math.acos(1.0 - SMALL_STRAIN_X_OVER_R)
+
+
+@dataclass(frozen=True)
+class SideEnds:
+    """The two ends of a capsule's or cylinder's side against a plane (world
+    frame), end 0 at the geom's -z end, end 1 at +z.
+
+    x [m] (2,): each end's approach (its end sphere's or rim arc's lowest
+    point; negative: a gap); lowest [m] (2, 3): those points; rise (2,):
+    sin of the angle by which the side rises from each end toward the other
+    (positive: that end is the lower); tilt [rad] = asin|rise|;
+    normal (3,): the plane's unit normal, toward the body."""
+
+    x: np.ndarray
+    lowest: np.ndarray
+    rise: np.ndarray
+    tilt: float
+    normal: np.ndarray
+
+
+def side_ends(shape, pos, rot, plane_pos, plane_normal) -> SideEnds:
+    """:class:`SideEnds` of ``shape`` (:class:`msf_contact.shapes.Capsule`
+    or :class:`~msf_contact.shapes.Cylinder`; frame at ``pos`` [m] (3,),
+    ``rot`` (3, 3), axis along its z) against the plane through
+    ``plane_pos`` [m] (3,) with unit normal ``plane_normal`` (3,). A
+    capsule's ends are the spheres of its radius at the segment's ends; a
+    cylinder's, in the plane of the axis and the normal, the arcs of its rim
+    torus (edge radius rho) centred R - rho from the axis and
+    half_length - rho from the middle."""
+    n = np.asarray(plane_normal, dtype=float)
+    z = np.asarray(rot, dtype=float).reshape(3, 3)[:, 2]
+    sin_t = float(np.clip(z @ n, -1.0, 1.0))
+    radial = -(n - sin_t * z)  # across the axis, toward the plane: |radial| = cos(tilt)
+    cos_t = float(np.linalg.norm(radial))
+    if isinstance(shape, Capsule):
+        e, off, half = shape.radius, 0.0, shape.half_length
+    elif isinstance(shape, Cylinder):
+        e, off, half = shape.edge_radius, shape.radius - shape.edge_radius, shape.half_length - shape.edge_radius
+    else:
+        raise ValueError(f"a line contact needs a capsule or a cylinder, not {type(shape).__name__}")
+    m = radial / cos_t if cos_t > 0.0 else np.zeros(3)
+    centres = np.asarray(pos, dtype=float)[None, :] + np.array([-half, half])[:, None] * z[None, :] + off * m
+    lowest = centres - e * n
+    x = -((lowest - np.asarray(plane_pos, dtype=float)) @ n)
+    rise = np.array([sin_t, -sin_t])  # from end 0 (at -z) toward end 1 the side rises by z.n
+    return SideEnds(x, lowest, rise, math.asin(abs(sin_t)), n.copy())
+
+
+class SideEndLaw(MSFLaw):
+    """The MSF line law of a capsule's or cylinder's side on a plane, carried
+    by its two ends (an extension of the paper, docs/theory.md 2a and
+    docs/engines.md): each end is one contact at its own approach x, and
+    this law is one end's share.
+
+    The line law (37) with a footprint (``SideFootprint``) is
+    F_n = W (2 eta'_E x' + 2/3 E' x) with W = (a + b)/2, a the contact's
+    width, b its length. One end's share, at its own x and the side's
+    current tilt theta:
+
+        W_end = (w a + rho0 + max(rho0, l)) / 2,   w = 1 - l / L,
+
+    where a = 2 sqrt(x (2 R_w - x)) is the width at the end's lowest point
+    (R_w the side's radius R; a cylinder's rim torus at that point:
+    (R - e + e cos theta) / cos theta), rho0 = sqrt(x (2 e - x)) the end
+    arc's half chord (e the end's radius: a capsule's R, a cylinder's edge
+    radius), L the side's straight length and l in [0, L/2] the length of
+    the end's half of the side that is below the plane: the side's bottom
+    line at s from the end (toward the middle) has the approach
+    x - e (1 - cos theta) - s rise (rise = sin theta, positive when this end
+    is the lower). Three properties make it the line law split over the
+    ends: lying flat (l = L/2 at both ends) the two shares add up to the
+    footprint's W = (a + L + 2 rho0)/2 at the common x, so a side falling
+    flat is the line law with the whole mass (its ends are solved together,
+    issue 10's islands); an end whose half of the side does not touch
+    (l = 0) is that end's point contact, W = (a + 2 rho0)/2 = the sphere's
+    or the rim torus' (13) with the msf k_p of (15); and it is continuous in
+    x and theta in between. Not the single-footprint law at intermediate
+    tilts: there each end carries its half at its own approach (two
+    springs, a pitch stiffness (L/2)^2 per end where a distributed line has
+    L^2/12 for the whole). The tilt and rise are the body's at each step
+    (:meth:`set_pose`; frozen within a step as the engines' normals are);
+    the onset constants are those of the pose at the contact's onset. The
+    numpy path (the compiled kernel has no footprint); :meth:`psi` is the
+    sphere of the side's radius, the bound the manager's onset-speed floor
+    takes."""
+
+    def __init__(self, template: MSFLaw, radius: float, end_radius: float, length: float, rounded: bool):
+        if not isinstance(template, MSFLaw) or template.kp_mode != "msf" or template.omega == "paper":
+            raise ValueError(f"a line contact has only the msf law with kp_mode 'msf' and omega not 'paper' "
+                             f"(docs/theory.md 2a); the pair's law is {template.name!r} with kp_mode "
+                             f"{template.kp_mode!r}")
+        fp = SideFootprint(radius, length, 0.0, "rounded" if rounded else "sphere",
+                           end_radius if rounded else None)
+        super().__init__(template.pair, Curvature.side_on_plane(fp), omega=template.omega, kp_mode="msf",
+                         separation=template.separation, mu=template.mu, temperature=template.temperature,
+                         strict=template.strict)
+        self.end_radius, self.length, self.rounded = float(end_radius), float(length), bool(rounded)
+        self.tilt, self.rise = 0.0, 0.0
+        self.mass_factor = 1.0
+
+    def set_pose(self, tilt: float, rise: float, w_own: float = 0.0, w_other: float = 0.0,
+                 dx_other: float = 0.0) -> None:
+        """The side's tilt [rad] and this end's rise (sin, signed) from now
+        on, and the onset mass: n.W.n [1/kg] of this end (w_own) and between
+        the ends (w_other), dx_other [m] the other end's approach minus this
+        one's (see :meth:`onset`)."""
+        self.tilt, self.rise = float(tilt), float(rise)
+        self.mass_factor = 1.0
+        if w_own > 0.0:
+            x_e = self._expected_depth(1.0 / w_own)
+            mine = self._width_one(x_e)
+            other = self._mirror_width(x_e + dx_other)
+            beta = min(other / mine, 1.0) if mine > 0.0 else 0.0
+            if w_own + beta * w_other > 0.0:
+                self.mass_factor = w_own / (w_own + beta * w_other)
+
+    def _expected_depth(self, m: float) -> float:
+        """A scale of the approach this side's contact reaches [m]: the elastic
+        x_max of the whole side at 1 m/s, W = L/2 (the ends' widths
+        neglected): 1/2 m v^2 = 1/3 E' L x^2 (only the onset mass's blend
+        uses it, to stay continuous in tilt)."""
+        return math.sqrt(1.5 * m / (self.moduli.E * self.length))
+
+    def _mirror_width(self, x: float) -> float:
+        """The other end's share W [m] at its approach x: the same law with the rise reversed."""
+        self.rise = -self.rise
+        try:
+            return self._width_one(x)
+        finally:
+            self.rise = -self.rise
+
+    def onset(self, v_n0, mass):
+        """MSFLaw.onset with the end's onset mass m / (1 + beta W_ij / W_ii):
+        the self-consistent omega_x of (46) is that of the collision the end
+        takes part in. beta, the other end's share of the force against this
+        one's at the expected depth (0: this end alone, its own mass; 1: the
+        side lying flat, both ends alike: m/2 each of the body's m, so a side
+        falling flat has the line law's constants with the whole mass), is
+        set with the pose (:meth:`set_pose`)."""
+        return super().onset(v_n0, np.asarray(mass, dtype=float) * self.mass_factor)
+
+    def onset_reference(self, v_n0, mass):
+        return super().onset_reference(v_n0, np.asarray(mass, dtype=float) * self.mass_factor)
+
+    def _parts(self, x):
+        """(w a, b) [m] of this end at the approach x [m] (n,) (see the class)."""
+        x = np.maximum(np.asarray(x, dtype=float), 0.0)
+        R, e, L, th = self.geom.R_a, self.end_radius, self.length, self.tilt
+        R_w = (R - e + e * math.cos(th)) / math.cos(th) if self.rounded else R
+        a = 2.0 * np.sqrt(np.maximum(x * (2.0 * R_w - x), 0.0))
+        rho0 = np.sqrt(np.maximum(x * (2.0 * e - x), 0.0))
+        d = x - e * (1.0 - math.cos(th))  # the bottom line's approach at the end
+        half = 0.5 * L
+        if self.rise > 0.0:
+            ell = np.clip(d / self.rise, 0.0, half)
+        elif self.rise < 0.0:
+            ell = half - np.clip(d / self.rise, 0.0, half)  # the end's half descends toward the middle
+        else:
+            ell = np.where(d > 0.0, half, 0.0)
+        ell = np.where(x > 0.0, ell, 0.0)  # an end not touching carries nothing of its half
+        return (1.0 - ell / L) * a, rho0 + np.maximum(rho0, ell)
+
+    def width(self, x):
+        """W_end [m] (n,) of the class docstring."""
+        x = np.asarray(x, dtype=float)
+        if x.size == 1:  # the reference impact's integrator asks one value at a time
+            return np.full(x.shape, self._width_one(float(x.reshape(-1)[0])))
+        wa, b = self._parts(x)
+        return 0.5 * (wa + b)
+
+    def _width_one(self, x: float) -> float:
+        """:meth:`width` of one approach, in scalar arithmetic (the same formulas as :meth:`_parts`)."""
+        if x <= 0.0:
+            return 0.0
+        R, e, L, th = self.geom.R_a, self.end_radius, self.length, self.tilt
+        R_w = (R - e + e * math.cos(th)) / math.cos(th) if self.rounded else R
+        a = 2.0 * math.sqrt(max(x * (2.0 * R_w - x), 0.0))
+        rho0 = math.sqrt(max(x * (2.0 * e - x), 0.0))
+        d, half = x - e * (1.0 - math.cos(th)), 0.5 * L
+        if self.rise > 0.0:
+            ell = min(max(d / self.rise, 0.0), half)
+        elif self.rise < 0.0:
+            ell = half - min(max(d / self.rise, 0.0), half)
+        else:
+            ell = half if d > 0.0 else 0.0
+        return 0.5 * ((1.0 - ell / L) * a + rho0 + max(rho0, ell))
+
+    def hertz_scale(self, v_n0, mass):
+        """A length of the order of the elastic x_max, never above it [m] (n,)
+        (the reference impact's tolerances): the smaller of the whole side
+        lying flat (W >= L/2: 1/2 m v^2 <= 1/3 E' L x^2) and the end alone
+        (Hertz for the end's sphere or rim point, sqrt(e R_w))."""
+        v, m = np.asarray(v_n0, dtype=float), np.asarray(mass, dtype=float)
+        E = self.moduli.E
+        R_w = self.geom.R_a
+        if self.rounded:
+            R_w = (R_w - self.end_radius + self.end_radius * math.cos(self.tilt)) / math.cos(self.tilt)
+        x_line = np.sqrt(3.0 * m * v * v / (E * self.length))
+        return np.minimum(x_line, cf.hertz_x_max(m, v, E, math.sqrt(self.end_radius * R_w)))
+
+    def shear_lengths(self, x):
+        """(36) with this end's axes: (P_bx, P_ax) = (k_ha x + b, k_hb x + w a) [m] (n,)."""
+        x = np.maximum(np.asarray(x, dtype=float), 0.0)
+        wa, b = self._parts(x)
+        return self.geom.k_ha * x + b, self.geom.k_hb * x + wa
+
+    def psi(self, x):
+        """The sphere of the side's radius: 2 k_p sqrt(R) [m^1/2] (n,) (see the class)."""
+        R = self.geom.R_a
+        return 2.0 * self.kp(x, R) * math.sqrt(R)

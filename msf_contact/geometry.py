@@ -70,9 +70,11 @@ class SideFootprint:
     ``docs/theory.md`` section 2a).
 
     radius [m] of the side, length [m] of its straight part (a capsule's
-    segment, a cylinder's height), tilt [rad] between the axis and the plane
-    (0 = lying flat), caps: ``"sphere"`` (a capsule's hemispherical ends) or
-    ``"flat"`` (a cylinder; only tilt = 0, the rim is then a separate contact).
+    segment, a cylinder's height between its rims), tilt [rad] between the
+    axis and the plane (0 = lying flat), caps: ``"sphere"`` (a capsule's
+    hemispherical ends), ``"flat"`` (a sharp-edged cylinder; only tilt = 0,
+    the rim is then a separate contact) or ``"rounded"`` (a cylinder whose
+    rim is a torus of tube radius ``end_radius``, any tilt below pi/2).
 
     The contact is measured exactly, as (13) is: the axis point at s along
     the segment (s = 0 the lowest end) is at the height h(s) = R - x + s sin(tilt)
@@ -80,29 +82,58 @@ class SideFootprint:
     radius rho(s) = sqrt(R^2 - h(s)^2). :meth:`axes` returns the width
     a = 2 rho(0) (= 2 k_p sqrt(R x) of (26) with the msf k_p of (15)) and the
     length b of the union of the discs along the axis.
+
+    ``"rounded"``: in the plane of the axis and the normal the cylinder's
+    bottom is its side's straight line of ``length`` ended by the rim's
+    arcs of radius rho = ``end_radius`` (the rim torus' meridian circle), so
+    b is the same union of discs with rho in place of R (centres at
+    R - rho from the axis), and the width a is the chord of the rim torus at
+    its lowest point, whose radius along the rim is
+    R_w = (R - rho + rho cos(tilt)) / cos(tilt) (``shapes.Cylinder``; R at
+    tilt 0): a = 2 sqrt(x (2 R_w - x)). While the side does not touch
+    (x <= rho (1 - cos(tilt))) this is the rim point's own contact, the
+    curvature (rho, R_w) of (13) with the msf k_p of (15), exactly.
     """
 
     radius: float
     length: float
     tilt: float = 0.0
     caps: str = "sphere"
+    end_radius: float | None = None
 
     def __post_init__(self):
         check_positive("footprint radius", self.radius, unit="m")
         check_positive("footprint length", self.length, unit="m")
         check_range("footprint tilt [rad]", self.tilt, 0.0, math.pi / 2)
-        check_choice("footprint caps", self.caps, ("sphere", "flat"))
+        check_choice("footprint caps", self.caps, ("sphere", "flat", "rounded"))
         if self.caps == "flat" and self.tilt != 0.0:
             raise ValueError(f"footprint tilt = {self.tilt!r} rad with flat caps: a tilted cylinder touches with "
-                             "its rim (a point contact: shapes.Cylinder.curvature at the rim), not its side")
+                             "its rim (a point contact: shapes.Cylinder.curvature at the rim), not its side; "
+                             "caps='rounded' with the rim's end_radius carries both")
+        if self.caps == "rounded":
+            if self.end_radius is None:
+                raise ValueError("footprint caps = 'rounded' needs end_radius (the rim's edge radius) [m]")
+            check_range("footprint end_radius", self.end_radius, 0.0, self.radius)
+            check_positive("footprint end_radius", self.end_radius, unit="m")
+            if self.tilt >= math.pi / 2:
+                raise ValueError(f"footprint tilt = {self.tilt!r} rad with rounded caps: a cylinder standing on "
+                                 "its end face is a flat punch, no line contact")
+        elif self.end_radius is not None:
+            raise ValueError(f"footprint end_radius = {self.end_radius!r} m is for caps = 'rounded' only "
+                             f"(got caps = {self.caps!r})")
 
     def axes(self, x):
         """Contact axes (a, b) [m] at the approach x [m] of the lowest point, (n,)."""
         x = np.maximum(np.asarray(x, dtype=float), 0.0)
         R, L, th = self.radius, self.length, self.tilt
+        if self.caps == "rounded":  # the rim's width at its lowest point, then discs of the rim's radius
+            R_w = (R - self.end_radius + self.end_radius * math.cos(th)) / math.cos(th)
+            a = 2.0 * np.sqrt(np.maximum(x * (2.0 * R_w - x), 0.0))
+            R = self.end_radius
         h0 = R - x
         rho0 = np.sqrt(np.maximum(x * (2.0 * R - x), 0.0))  # R^2 - h0^2 without cancellation
-        a = 2.0 * rho0
+        if self.caps != "rounded":
+            a = 2.0 * rho0
         if self.caps == "flat":
             return a, np.where(x > 0.0, L, 0.0)
         if th == 0.0:

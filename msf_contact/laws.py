@@ -194,8 +194,10 @@ class ForceLaw(abc.ABC):
             work = quad(lambda s: (2.0 / 3.0) * E * s * float(self.width(np.array([s]))[0]), 0.0, x)[0]
             return work - 0.5 * m * v * v
 
-        hi = float(cf.hertz_x_max(m, v, E, self.geom.R_a))  # the sphere of the side's radius: softer
-        return brentq(excess, 0.0, min(hi, 0.999 * self.x_limit), xtol=1e-15, rtol=1e-12)
+        hi = min(float(cf.hertz_x_max(m, v, E, self.geom.R_a)), 0.999 * self.x_limit)  # the side's sphere
+        while excess(hi) < 0.0 and hi < 0.999 * self.x_limit:  # a softer contact (a rim alone) reaches deeper
+            hi = min(2.0 * hi, 0.999 * self.x_limit)
+        return brentq(excess, 0.0, hi, xtol=1e-15, rtol=1e-12)
 
     def solve_normal(self, v0: float, mass: float, onset: dict, n_samples: int = 0):
         """The isolated normal impact of one contact under this law (reference)."""

@@ -5,10 +5,12 @@ benchmark prints:
     .venv/bin/python scripts/shape_numbers.py profile   # cProfile of the MSF humanoid (200 steps)
 
 ``line``: natural rubber on steel, a cylinder r 10 mm, 60 mm long, edge
-radius 1 mm, falling flat at 1 m/s, in the reference solver: the line law
-over its straight side (geometry.SideFootprint, flat caps) against one of
-the two rim points MuJoCo lists (the rim torus at alpha = 0: 1 mm and
-10 mm) carrying half the mass. ``profile``: the 20 most expensive calls
+radius 1 mm, falling flat at 1 m/s: the reference solver's line law over
+its side (geometry.SideFootprint with the rim's arcs, "rounded"), the same
+cylinder in MuJoCo at dt = 1 ms (its two ends carrying the line law,
+engines._narrow.SideEndLaw), and one of the two rim points alone (the rim
+torus at alpha = 0: 1 mm and 10 mm) carrying half the mass, as the
+engines had it before. ``profile``: the 20 most expensive calls
 (cumulative) of 200 steps of humanoid.xml with seeded torques after 20
 warm-up steps.
 """
@@ -31,14 +33,41 @@ def line() -> None:
     pair = ContactPair(rubber, steel)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        side = make_law("msf", pair, Curvature.side_on_plane(SideFootprint(r, 2 * h - 2 * rho, 0.0, "flat")))
+        fp = SideFootprint(r, 2 * h - 2 * rho, 0.0, "rounded", rho)
+        side = make_law("msf", pair, Curvature.side_on_plane(fp))
         a = simulate_impact(side, Body(rubber, r, m, 0.5 * m * r * r), Body.half_space(steel), v)
         rim = make_law("msf", pair, Curvature(rho, r, math.inf, math.inf))
         b = simulate_impact(rim, Body(rubber, rho, m / 2, 0.4 * m / 2 * rho * rho), Body.half_space(steel), v)
-    print(f"line law over the side: COR {a.cor_n:.3f}, tau {a.tau * 1e3:.2f} ms, x_max {a.x_max * 1e3:.2f} mm, "
-          f"F_max {a.F_max:.1f} N")
+        eng = _mujoco_lying_cylinder(pair, r, h, m, v)
+    print(f"line law over the side: COR {a.cor_n:.5f}, tau {a.tau * 1e3:.4f} ms, x_max {a.x_max * 1e3:.3f} mm, "
+          f"F_max {a.F_max:.2f} N")
+    print(f"MuJoCo, its ends carrying the line law: COR {eng[0]:.5f}, tau {eng[1] * 1e3:.4f} ms, "
+          f"F_max {eng[2]:.2f} N in all")
     print(f"two rim points, m/2 each: COR {b.cor_n:.3f}, tau {b.tau * 1e3:.2f} ms, x_max {b.x_max * 1e3:.2f} mm, "
           f"F_max {2 * b.F_max:.1f} N in all; outside validity: {b.outside_validity[:1]}")
+
+
+def _mujoco_lying_cylinder(pair, r, h, m, v):
+    """(COR of the body, tau [s], summed peak force [N]) of the cylinder dropped flat in MuJoCo."""
+    import mujoco
+
+    from engines.base import PairSpec
+    from engines.mujoco import MujocoAdapter
+    from msf_contact import Curvature, make_law
+
+    I = (m * (3 * r * r + 4 * h * h) / 12, m * r * r / 2)
+    xml = ('<mujoco><option timestep="0.001" gravity="0 0 0"/><worldbody>'
+           '<geom name="plate" type="plane" size="1 1 0.1"/>'
+           f'<body name="b" pos="0 0 {r + 1e-4!r}" euler="0 90 0"><freejoint/>'
+           f'<inertial pos="0 0 0" mass="{m!r}" diaginertia="{I[0]!r} {I[0]!r} {I[1]!r}"/>'
+           f'<geom name="g" type="cylinder" size="{r} {h}" mass="0"/></body></worldbody>'
+           '<contact><exclude body1="world" body2="b"/></contact></mujoco>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qvel[2] = -v
+    ad = MujocoAdapter(model, data, [PairSpec("g", "plate", make_law("msf", pair, Curvature.sphere_on_plane(r)))])
+    ad.step(100)
+    return float(data.qvel[2]) / v, ad.records[0].tau, sum(rec.F_max for rec in ad.records[:2])
 
 
 def profile() -> None:

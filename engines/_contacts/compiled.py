@@ -41,7 +41,7 @@ def kernel_law(law: ForceLaw):
     t = type(law)
     if any(getattr(t, m, None) is not getattr(base, m, None) for m in _KERNEL_METHODS):
         return None
-    if law.kp_mode not in _KP_MODES:
+    if law.kp_mode not in _KP_MODES or law.geom.footprint is not None:  # a line contact: numpy path
         return None
     g = law.geom
     lc = np.zeros(K.NLC)

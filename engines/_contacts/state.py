@@ -236,7 +236,7 @@ def _msf_inline(law: ForceLaw) -> bool:
     :meth:`_Batch.rhs` may evaluate them inline (one k_p and one sqrt(x) for
     F_n, its elastic part and the shear lengths, instead of six k_p calls)."""
     t = type(law)
-    return (t.normal_force is MSFLaw.normal_force and t.shear_lengths is MSFLaw.shear_lengths
+    return (law.geom.footprint is None and t.normal_force is MSFLaw.normal_force and t.shear_lengths is MSFLaw.shear_lengths
             and t.tangential_stiffness is MSFLaw.tangential_stiffness and t.psi is ForceLaw.psi
             and t.kp is ForceLaw.kp and t.contact_normal_force is ForceLaw.contact_normal_force)
 
