@@ -99,21 +99,42 @@ class IslandBalance:
     def stored(mgr, pp) -> float:
         """S of the rows pp (module docstring) [J]: for each row in contact, the
         elastic energy of its normal force at its internal overlap plus W_t - Q_t."""
-        pp = np.asarray(pp)
-        on = pp[mgr.active[pp]]
-        if on.size == 0:
-            return 0.0
-        S = float(np.sum(mgr.W_t[on] - mgr.Q_t[on]))
-        for g in np.unique(mgr._group_of[on]):
-            q = on[mgr._group_of[on] == g]
-            o = {key: arr[mgr._pos[q]] for key, arr in mgr._onset[g].items()}
-            S += float(np.sum(elastic_energy(mgr._groups[g], np.maximum(mgr.x[q], 0.0), o)))
-        return S
+        return float(np.sum(IslandBalance.stored_rows(mgr, pp)))
 
-    def open(self, mgr, pp, keys, S0: float) -> None:
+    @staticmethod
+    def stored_rows(mgr, pp) -> np.ndarray:
+        """S of each row of pp (k,) [J] (:meth:`stored` summed per row: 0 for a row not in contact)."""
+        pp = np.asarray(pp)
+        out = np.zeros(pp.size)
+        on = np.flatnonzero(mgr.active[pp])
+        if on.size == 0:
+            return out
+        q = pp[on]
+        out[on] = mgr.W_t[q] - mgr.Q_t[q]
+        gid = mgr._group_of[q]
+        for g in np.unique(gid):
+            sel = np.flatnonzero(gid == g)
+            o = {key: arr[mgr._pos[q[sel]]] for key, arr in mgr._onset[g].items()}
+            out[on[sel]] += elastic_energy(mgr._groups[g], np.maximum(mgr.x[q[sel]], 0.0), o)
+        return out
+
+    def open_many(self, mgr, pp, io, keys, ko) -> None:
+        """:meth:`open` for several islands at once, with one probe call: island i
+        has rows pp[io[i]:io[i+1]] and bodies keys[ko[i]:ko[i+1]] (the islands'
+        bodies are distinct); S0 of each from :meth:`stored_rows`."""
+        if io.size < 2:
+            return
+        S = np.add.reduceat(self.stored_rows(mgr, pp), io[:-1]) if pp.size else np.zeros(io.size - 1)
+        probed = [np.asarray(a, dtype=float) for a in self.probe(keys)]
+        for i in range(io.size - 1):
+            b = slice(ko[i], ko[i + 1])
+            self.open(mgr, pp[io[i]:io[i + 1]], keys[b], float(S[i]), [a[b] for a in probed])
+
+    def open(self, mgr, pp, keys, S0: float, probed=None) -> None:
         """An island of rows pp (k,) on bodies keys (b,) begins its step
-        (before it is integrated); S0 its rows' stored energy now."""
-        T0, U0, q0, m = (np.asarray(a, dtype=float) for a in self.probe(keys))
+        (before it is integrated); S0 its rows' stored energy now; probed: the
+        probe's (T, U, q, m) of keys if read already."""
+        T0, U0, q0, m = (np.asarray(a, dtype=float) for a in (self.probe(keys) if probed is None else probed))
         if not all(np.all(np.isfinite(a)) for a in (T0, U0, q0, m)):
             return
         # the scale of the relative tolerance: kinetic energy and the normal energy stored in contact, at
@@ -142,12 +163,18 @@ class IslandBalance:
         if not self._open:
             return
         opened, self._open = self._open, []
-        for pp, keys, E0, q0, S0, scale in opened:
-            T1, U1, q1, _m = (np.asarray(a, dtype=float) for a in self.probe(keys))
+        # one probe call and one stored-energy pass for all the islands (their bodies are distinct)
+        ko = np.cumsum([0] + [o[1].size for o in opened])
+        io = np.cumsum([0] + [o[0].size for o in opened])
+        probed = [np.asarray(a, dtype=float) for a in self.probe(np.concatenate([o[1] for o in opened]))]
+        pp_all = np.concatenate([o[0] for o in opened])
+        S1 = np.add.reduceat(self.stored_rows(mgr, pp_all), io[:-1]) if pp_all.size else np.zeros(len(opened))
+        for i, (pp, keys, E0, q0, S0, scale) in enumerate(opened):
+            T1, U1, q1, _m = (a[ko[i]:ko[i + 1]] for a in probed)
             if not all(np.all(np.isfinite(a)) for a in (T1, U1, q1)):
                 continue
             self.checked += 1
-            gain = (float(T1.sum() + U1.sum()) + self.stored(mgr, pp)) - (E0 + S0)
+            gain = (float(T1.sum() + U1.sum()) + float(S1[i])) - (E0 + S0)
             allowed = ENERGY_GAIN_RTOL * scale + 0.5 * mgr.dt * float(np.sum(np.abs(q1 - q0)))
             if gain > allowed:
                 self._flag(mgr, pp, t_start, gain, allowed)

@@ -580,11 +580,9 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         info["island_rows"] += int(R.size)
         self.in_island[pp_all] = True
         self._island_contact[pp_all] = True  # contacts that begin in it: Records._begin
-        if self._balance is not None:
-            for i in range(io.size - 1):
-                pp = pp_all[io[i]:io[i + 1]]
-                keys = keys_all[pp]
-                self._balance.open(self, pp, np.unique(keys[keys >= 0]), IslandBalance.stored(self, pp))
+        if self._balance is not None:  # each island's bodies, for one probe call
+            bk = [np.unique(k[k >= 0]) for k in np.split(keys_all[pp_all], io[1:-1])]
+            self._balance.open_many(self, pp_all, io, np.concatenate(bk), np.cumsum([0] + [b.size for b in bk]))
         # the compiled path for the islands whose every row's law the kernel knows (island_compiled)
         kern = np.zeros(io.size - 1, bool)
         if self.island_compiled:

@@ -570,6 +570,14 @@ class MujocoAdapter(EngineAdapter):
                           -1 if p.fixed2 else int(model.body_rootid[p.body2])] for p in self._pairs], dtype=np.int64)
         self._p1, self._p2 = np.zeros((P, 3)), np.zeros((P, 3))  # this step's contact points on body 1, 2
         self._keys = keys
+        # the coupling blocks in closed form where both sides of a pair are fixed or simple free bodies
+        # (_coupling_blocks): each side's body and whether it moves as a free rigid body
+        simple = np.array([_simple_free_body(model, b) for b in range(model.nbody)])
+        self._side_body = np.array([[p.body1, p.body2] for p in self._pairs], dtype=np.int64).reshape(P, 2)
+        self._side_free = np.array([[not p.fixed1 and simple[p.body1], not p.fixed2 and simple[p.body2]]
+                                    for p in self._pairs], dtype=bool).reshape(P, 2)
+        self._closed_pair = np.array([(p.fixed1 or simple[p.body1]) and (p.fixed2 or simple[p.body2])
+                                      for p in self._pairs], dtype=bool)
         self._push = np.full(P, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
         # islands need a moving body in two pairs (or two slots of one pair); without one (N spheres on a plate,
         # the jet without particle-particle contacts) every contact is alone: no coupling, no push reach
@@ -1414,16 +1422,19 @@ class MujocoAdapter(EngineAdapter):
         w = d.cvel[b, :3].copy()
         R = d.ximat[b].reshape(-1, 3, 3)
         I = m.body_inertia[b]
-        where = {int(k): i for i, k in enumerate(b)}
-        for p in np.flatnonzero(np.any(mgr.J != 0.0, axis=1)):
-            J = mgr.J[p]
-            for side, sgn, pt in ((0, 1.0, self._p1[p]), (1, -1.0, self._p2[p])):
-                i = where.get(int(self._keys[p, side]), -1)
-                if i < 0:
-                    continue
-                v[i] -= sgn * J / mass[i]
-                L = np.cross(pt - d.xipos[b[i]], sgn * J)  # angular impulse about the centre of mass
-                w[i] -= R[i] @ ((R[i].T @ L) / I[i])
+        where = np.full(m.nbody + 1, -1, np.int64)  # body key -> its position in b (-1: not asked; [-1]: fixed)
+        where[b] = np.arange(b.size)
+        p = np.flatnonzero(np.any(mgr.J != 0.0, axis=1))
+        for side, sgn, pts in ((0, 1.0, self._p1), (1, -1.0, self._p2)):
+            i = where[self._keys[p, side]]
+            on = i >= 0
+            if not np.any(on):
+                continue
+            i, q = i[on], p[on]
+            J = sgn * mgr.J[q]
+            np.subtract.at(v, i, J / mass[i][:, None])
+            L = np.cross(pts[q] - d.xipos[b[i]], J)  # angular impulse about the centre of mass
+            np.subtract.at(w, i, np.einsum("kij,kj->ki", R[i], np.einsum("kji,kj->ki", R[i], L) / I[i]))
         wl = np.einsum("kji,kj->ki", R, w)  # body axes
         T = 0.5 * mass * np.einsum("ki,ki->k", v, v) + 0.5 * np.einsum("ki,ki->k", wl * I, wl)
         U = -mass * (d.xipos[b] @ g)
@@ -1434,9 +1445,48 @@ class MujocoAdapter(EngineAdapter):
     def _coupling_blocks(self, pp, pq):
         """The manager's coupling blocks (ContactManager.set_coupling): W_pq =
         J_p M^-1 J_q^T and Wc_pq = J_c,p M^-1 J_q^T (b, 3, 3) [1/kg] between the
-        step's contact points of pairs pp and pq (b,), each body's Jacobian at
-        its own point (``mj_jac``, ``mj_solveM``): exact for free bodies and
-        links of chains alike. Called inside the hook (the state is current)."""
+        step's contact points of pairs pp and pq (b,). Where both pairs' sides
+        are fixed or simple free bodies (one free joint, no armature, no
+        children: _simple_free_body) in closed form, as the pybullet adapter:
+        for each body b shared by p and q, with signs s = +1 (body 1) or -1
+        (body 2) and lever arms r from its centre of mass to each pair's
+        contact point, W_pq += s_p s_q (1/m - [r_p]x I^-1 [r_q]x) and Wc_pq +=
+        s_p s_q / m (I^-1 in world axes from ximat and body_inertia; equal to
+        the Jacobian route to round-off, tests/test_island_kernel.py); the
+        others through the Jacobians (:meth:`_coupling_blocks_jac`)."""
+        closed = self._closed_pair[pp] & self._closed_pair[pq]
+        W = np.zeros((pp.size, 3, 3))
+        Wc = np.zeros((pp.size, 3, 3))
+        if not np.all(closed):
+            o = np.flatnonzero(~closed)
+            W[o], Wc[o] = self._coupling_blocks_jac(pp[o], pq[o])
+        c = np.flatnonzero(closed)
+        if c.size == 0:
+            return W, Wc
+        m, d = self.model, self.data
+        a, b = pp[c], pq[c]
+        pts = (self._p1, self._p2)
+        eye = np.eye(3)
+        for sp, gp in ((0, 1.0), (1, -1.0)):
+            for sq, gq in ((0, 1.0), (1, -1.0)):
+                bp = self._side_body[a, sp]
+                on = (bp == self._side_body[b, sq]) & self._side_free[a, sp] & self._side_free[b, sq]
+                if not np.any(on):
+                    continue
+                j = bp[on]
+                R = d.ximat[j].reshape(-1, 3, 3)
+                Iinv = (R / m.body_inertia[j][:, None, :]) @ R.transpose(0, 2, 1)
+                rp = _skew(pts[sp][a[on]] - d.xipos[j])
+                rq = _skew(pts[sq][b[on]] - d.xipos[j])
+                inv_m = (1.0 / m.body_mass[j])[:, None, None]
+                W[c[on]] += gp * gq * (inv_m * eye - rp @ Iinv @ rq)
+                Wc[c[on]] += gp * gq * inv_m * eye
+        return W, Wc
+
+    def _coupling_blocks_jac(self, pp, pq):
+        """The coupling blocks of :meth:`_coupling_blocks` through each body's
+        Jacobian at its own point (``mj_jac``, ``mj_solveM``): exact for free
+        bodies and links of chains alike. Called inside the hook (the state is current)."""
         m, d = self.model, self.data
         J, Jc, MJ = {}, {}, {}
         for i in np.unique(np.concatenate([pp, pq])).tolist():
