@@ -131,6 +131,8 @@ class EngineAdapter(abc.ABC):
         or off; ``self._handoff``: an edge handed to the engine) are shown to
         the manager as far (FAR_GAP) and separating (FAR_SPEED), so it neither
         starts nor continues a contact for them."""
+        if not (self._mode.any() or self._handoff.any()):  # every pair on MSF (the usual case)
+            return kin
         off = (self._mode[kin.pair] != 0) | self._handoff[kin.pair]
         if np.any(off):
             kin.x = np.where(off, -FAR_GAP, kin.x)

@@ -340,9 +340,9 @@ def test_coincident_centres_refused_alike():
 
 
 def test_off_image_is_the_step_trackers_numpy_test():
-    """engines.mujoco._kernels.off_image (the step tracker's usual case in one
-    pass) answers as the numpy test it replaced, any(|image - qpos| >
-    JUMP_VTOL h (1 + max |qvel|) + 1e-13 (1 + |q0|)), on random states: the
+    """engines.mujoco._kernels.off_image (the step tracker's semi-implicit test
+    in one pass) answers as the numpy test it replaced, |image - qpos| >
+    JUMP_VTOL h (1 + max |qvel|) + 1e-13 (1 + |q0|) per coordinate, on random states: the
     image itself, one coordinate moved just past and just inside the bound,
     and NaN in qvel (every tolerance NaN: nothing compares off) or in qpos."""
     from engines.mujoco._kernels import off_image
@@ -353,7 +353,7 @@ def test_off_image_is_the_step_trackers_numpy_test():
 
     def numpy_off(img, qpos, q0, qvel):
         vmax = float(np.max(np.abs(qvel)))
-        return bool(np.any(np.abs(img - qpos) > JUMP_VTOL * h * (1.0 + vmax) + 1e-13 * (1.0 + np.abs(q0))))
+        return np.abs(img - qpos) > JUMP_VTOL * h * (1.0 + vmax) + 1e-13 * (1.0 + np.abs(q0))
 
     seen = set()
     for trial in range(200):
@@ -374,8 +374,10 @@ def test_off_image_is_the_step_trackers_numpy_test():
         elif kind == 4:
             qpos[i] = np.nan
         want = numpy_off(img, qpos, q0, qvel)
-        assert off_image(img, qpos, q0, qvel, h, JUMP_VTOL) == want
-        seen.add(want)
+        bad = np.ones(nq, bool)
+        assert off_image(img, qpos, q0, qvel, h, JUMP_VTOL, bad) == bool(want.any())
+        np.testing.assert_array_equal(bad, want)
+        seen.add(bool(want.any()))
     assert seen == {True, False}
 
 

@@ -430,10 +430,11 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         kept gap, whose sum decays by settle_rate), plus TOUCH_TOL: a larger
         difference is not the integrator's (a narrow phase's point beyond its
         margin, a face or point that changed) and the engine's gap is taken."""
-        # compiled (engines._kernel.own_gaps: one pass, no (k,) temporaries; the same arithmetic); the
-        # dot products stay numpy's
-        xd0_new = -_dot(v - self.dv_corr[pair], n)
-        an_new = -_dot(a, n)
+        # compiled (engines._kernel.own_gaps: one pass, no (k,) temporaries; the same arithmetic), the
+        # two dot products too (engines._kernel.approach_rates: in einsum's order)
+        k = pair.shape[0]
+        xd0_new, an_new = np.empty(k), np.empty(k)
+        K.approach_rates(pair, v, self.dv_corr, a, n, xd0_new, an_new)
         out = np.empty_like(x)
         K.own_gaps(pair, x, self.x, self.active, self._listed, self.own_gap, self.xdot, self._xd0, self._an,
                    self._off, xd0_new, an_new, self.dt, self.settle_rate, TOUCH_TOL, out)

@@ -19,8 +19,8 @@ from msf_contact.record import ImpactRecord
 
 from .. import _kernel as K
 from .state import (
-    ENERGY_GAIN_RTOL, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, PENDING_MAX_STEPS, ROTATION_PER_STEP_MAX,
-    SUBSTEPS_PER_CONTACT, SUBSTEPS_PER_TANGENTIAL, _dot, _duration_estimate, _pc, _plain, _Rows, onset_speed_floor,
+    ENERGY_GAIN_RTOL, _Q, _WEL, _WT, _WVI, PENDING_MAX_STEPS, ROTATION_PER_STEP_MAX,
+    SUBSTEPS_PER_CONTACT, SUBSTEPS_PER_TANGENTIAL, _duration_estimate, _pc, _plain, _Rows, onset_speed_floor,
 )
 
 
@@ -42,18 +42,16 @@ class Records:
         return len(self._pending)
 
     def _begin(self, g, law, p, new, y, batch, t_abs):
-        """Onset of the contacts at rows new: law.onset for all of them at once."""
+        """Onset of the contacts at rows new: law.onset for all of them at once
+        (the per-row arithmetic and bookkeeping around it compiled:
+        engines._kernel.onset_pre, onset_post)."""
         pp = p[new]
-        self._island_contact[pp] = self.in_island[pp]
-        n = batch.n[new]
-        W = batch.W[new]
-        nWn = np.einsum("ki,kij,kj->k", n, W, n)
-        if np.any(nWn <= 0):
+        k = pp.size
+        m, vn, a_n = np.empty(k), np.empty(k), np.empty(k)
+        bad = K.onset_pre(new, batch.n, batch.W, batch.a, y, m, vn, a_n)
+        if bad >= 0:
+            nWn = np.einsum("ki,kij,kj->k", batch.n[new], batch.W[new], batch.n[new])
             raise ValueError(f"n.W.n = {nWn!r} 1/kg must be > 0 (both bodies fixed, or W is wrong)")
-        m = 1.0 / nWn
-        v = y[new, _V]
-        vn = np.maximum(-_dot(v, n), 0.0)
-        a_n = -_dot(batch.a[new], n)
         v_used = np.maximum(vn, onset_speed_floor(law, m, a_n))
         o = law.onset(v_used, m)
         # store per pair (group arrays created on first use)
@@ -69,42 +67,17 @@ class Records:
             store[key][self._pos[pp]] = val
         if not isinstance(batch, _Rows):  # the numpy path's batch carries its rows' onset constants
             batch.onset = {key: arr[self._pos[p]] for key, arr in store.items()}
-        # duration estimate -> internal step
-        tau_n = _duration_estimate(law, o, m, v_used)
+        # duration estimate -> internal step, and the bookkeeping
+        tau_n = np.broadcast_to(np.asarray(_duration_estimate(law, o, m, v_used), dtype=float), (k,))
         x_est = cf.hertz_x_max(m, v_used, law.moduli.E, law.geom.R)
         k_t, _ = law.tangential_stiffness(x_est, o_new)
-        w_t = np.empty(pp.size)  # the largest eigenvalue of T W T, T = I - n n^T
-        K.tangential_w_max(n, W, w_t, np.empty((2, 3)))
-        with np.errstate(divide="ignore"):
-            tau_t = np.where(k_t.max(axis=1) * w_t > 0, math.pi / np.sqrt(k_t.max(axis=1) * w_t), np.inf)
-        self.tau_est[pp] = tau_n
-        self.h[pp] = np.minimum(tau_n / SUBSTEPS_PER_CONTACT, tau_t / SUBSTEPS_PER_TANGENTIAL)
-        # bookkeeping
-        self.t_onset[pp] = t_abs
-        self.v_n_in[pp] = vn
-        self.v_n_used[pp] = v_used
-        self.m_eff[pp] = m
-        self.n_in[pp] = n
-        self.p_in[pp] = self._point[pp]
-        self.u_in[pp] = v - _dot(v, n)[:, None] * n
-        vc = y[new, _VC]
-        self.vc_in[pp] = vc - _dot(vc, n)[:, None] * n
-        self.x_max[pp] = np.maximum(y[new, _X], 0.0)
-        self.x_onset[pp] = y[new, _X]
-        self.x_turn[pp] = 0.0
-        self.turned[pp] = False
-        self.tau1[pp] = 0.0
-        self.F_max[pp] = 0.0
-        self.x_at_F[pp] = 0.0
-        self.f_min[pp] = np.inf
-        self.f_max[pp] = 0.0
-        self.W_el_comp[pp] = 0.0
-        self.W_visc_comp[pp] = 0.0
-        self.outside[pp] = False
-        y[new, _S] = 0.0
-        for q in pp:
-            self._gain_note[int(q)] = None
-        y[new, _WEL] = y[new, _WVI] = y[new, _Q] = y[new, _WT] = 0.0
+        K.onset_post(pp, new, batch.n, batch.W, y, np.broadcast_to(np.asarray(t_abs, dtype=float), (k,)), vn, v_used,
+                     m, tau_n, np.asarray(k_t, dtype=float).reshape(k, 2), float(SUBSTEPS_PER_CONTACT),
+                     float(SUBSTEPS_PER_TANGENTIAL), self._point, self.in_island, self._island_contact,
+                     self.tau_est, self.v_n_in, self.v_n_used, self.m_eff, self.n_in, self.p_in, self.u_in,
+                     self.vc_in, self.x_onset, self.turned, self.outside, self._fl, np.empty((2, 3)))
+        for q in pp.tolist():
+            self._gain_note[q] = None
         if self._probe is not None:
             for q in pp:
                 self.body_in[int(q)] = dict(self._probe(int(q)) or {})
@@ -263,8 +236,9 @@ class Records:
                 rec.inputs["body_out_unavailable"] = why
                 self._publish(p, rec)
         self._pending = keep
-        for p in np.flatnonzero(sel):
-            self._hist.pop(int(p), None)
+        if self._hist:
+            for p in np.flatnonzero(sel).tolist():
+                self._hist.pop(p, None)
         self.active[sel] = False
         self.settled[sel] = False
         self.J[sel] = 0.0
@@ -330,7 +304,7 @@ class Records:
             if at_step_start:
                 entry[3] += 1
             p, rec, axis, waited = entry
-            clean = waited >= 1 and not np.any(self.J[p])
+            clean = waited >= 1 and not self.J[p].any()
             if clean:
                 if self._probe is not None:
                     if probe is None:  # the first record of a batch between steps

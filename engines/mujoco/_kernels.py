@@ -432,21 +432,118 @@ def after_step(gi, group_of, pair, force, active, settled, t_onset, tau_est, t_n
 
 
 @njit(cache=True, error_model="numpy")
-def off_image(q_img, qpos, q0, qvel, h, vtol):
+def off_image(q_img, qpos, q0, qvel, h, vtol, bad):
     """Whether any coordinate of qpos is off the step's image q_img (nq,):
     |q_img - qpos| > vtol h (1 + max |qvel|) + 1e-13 (1 + |q0|), the test of
     engines.mujoco._stepping.StepTracker for the semi-implicit integrators,
-    in one pass (a NaN anywhere compares False, as numpy's)."""
+    in one pass; bad (nq,) bool: which (a NaN anywhere compares False, as
+    numpy's: a NaN in qvel makes every tolerance NaN)."""
     vmax = 0.0
     nan = False
     for i in range(qvel.shape[0]):  # branch-free loops (vectorised)
         a = abs(qvel[i])
         nan |= a != a
         vmax = a if a > vmax else vmax
-    if nan:  # np.max propagates NaN: every tolerance is NaN, no coordinate compares off
-        return False
-    tq = vtol * h * (1.0 + vmax)
+    tq = vtol * h * (1.0 + vmax) if not nan else np.nan
     off = False
     for i in range(qpos.shape[0]):
-        off |= abs(q_img[i] - qpos[i]) > tq + 1e-13 * (1.0 + abs(q0[i]))
+        b = abs(q_img[i] - qpos[i]) > tq + 1e-13 * (1.0 + abs(q0[i]))
+        bad[i] = b
+        off |= b
     return off
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _skew_into(S, i, v0, v1, v2):
+    """S[i] = [v]x."""
+    S[i, 0, 0], S[i, 0, 1], S[i, 0, 2] = 0.0, -v2, v1
+    S[i, 1, 0], S[i, 1, 1], S[i, 1, 2] = v2, 0.0, -v0
+    S[i, 2, 0], S[i, 2, 1], S[i, 2, 2] = -v1, v0, 0.0
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _mat3(S, o, a, b, sign, add):
+    """S[o] (+)= sign S[a] @ S[b]."""
+    for i in range(3):
+        for j in range(3):
+            s = (S[a, i, 0] * S[b, 0, j] + S[a, i, 1] * S[b, 1, j]) + S[a, i, 2] * S[b, 2, j]
+            S[o, i, j] = (S[o, i, j] + sign * s) if add else sign * s
+
+
+@njit(cache=True, error_model="numpy")
+def lever_free(gi, gf, group_of, pair, x, normal, a_ext, settled, x_last, cvel, xipos, ximat, p1, p2, dt, out, S):
+    """The adapter's ``_lever`` for the free group (engines._contacts.state.LEVER_DOC,
+    lever_terms_free): for the rows of ``pair`` (k,) in the group whose pair
+    the manager did not settle in the last step, W01, W11 (row-major) and g0
+    into out (k, 21) (zeros elsewhere), from the lever arms p_i - xipos_i
+    (p1, p2 (P, 3) the pairs' contact points), the world inverse inertias
+    R diag(1/I) R^T (gf's F_INVI*; zero for a fixed body 2) and cvel's
+    angular velocities; a_ext (k, 3) of those rows less g0 (max(x, 0) -
+    x_last)/dt, and x_last (P,) [m] set to max(x, 0) of the rows (0 for
+    the other pairs). The same products as the numpy path, summed per entry
+    in matmul's order (round-off apart: tests/test_mujoco_kernels.py).
+    S (9, 3, 3): scratch. Returns the number of such (live) rows; without
+    one, out and a_ext are left as they are."""
+    k = pair.shape[0]
+    live = 0
+    for r in range(k):
+        p = pair[r]
+        live += group_of[p] >= 0 and not settled[p]
+    if live:
+        for r in range(k):
+            for c in range(21):
+                out[r, c] = 0.0
+    for r in range(k):
+        if not live:
+            break
+        p = pair[r]
+        g = group_of[p]
+        xp = _nonneg(x[r])
+        xl = x_last[p]
+        if g < 0 or settled[p]:
+            continue
+        b1, b2 = gi[g, I_B1], gi[g, I_B2]
+        n0, n1, n2 = normal[r, 0], normal[r, 1], normal[r, 2]
+        # S[0], S[1]: the world inverse inertias; S[2] = [n]x, S[3] = [r1]x, S[4] = [r2]x
+        for i in range(3):
+            for j in range(3):
+                S[0, i, j] = _iinv(ximat, b1, i, j, gf[g, F_INVI1], gf[g, F_INVI1 + 1], gf[g, F_INVI1 + 2])
+        free2 = gi[g, I_FREE2] != 0
+        for i in range(3):
+            for j in range(3):
+                S[1, i, j] = (_iinv(ximat, b2, i, j, gf[g, F_INVI2], gf[g, F_INVI2 + 1], gf[g, F_INVI2 + 2])
+                              if free2 else 0.0)
+        _skew_into(S, 2, n0, n1, n2)
+        _skew_into(S, 3, p1[p, 0] - xipos[b1, 0], p1[p, 1] - xipos[b1, 1], p1[p, 2] - xipos[b1, 2])
+        _skew_into(S, 4, p2[p, 0] - xipos[b2, 0], p2[p, 1] - xipos[b2, 1], p2[p, 2] - xipos[b2, 2])
+        # W01 = (-[r1]x I1 [n]x + [r2]x I2 [n]x)/2
+        _mat3(S, 5, 3, 0, -1.0, False)  # -[r1]x I1
+        _mat3(S, 6, 5, 2, 1.0, False)  # -[r1]x I1 [n]x
+        _mat3(S, 5, 4, 1, 1.0, False)  # [r2]x I2
+        _mat3(S, 6, 5, 2, 1.0, True)
+        # W11 = -[n]x (I1 + I2) [n]x / 4
+        for i in range(3):
+            for j in range(3):
+                S[7, i, j] = S[0, i, j] + S[1, i, j]
+        _mat3(S, 8, 2, 7, 1.0, False)
+        _mat3(S, 5, 8, 2, 1.0, False)
+        for i in range(3):
+            for j in range(3):
+                out[r, 3 * i + j] = 0.5 * S[6, i, j]
+                out[r, 9 + 3 * i + j] = -0.25 * S[5, i, j]
+        w0 = cvel[b1, 0] + (cvel[b2, 0] if free2 else 0.0)
+        w1 = cvel[b1, 1] + (cvel[b2, 1] if free2 else 0.0)
+        w2 = cvel[b1, 2] + (cvel[b2, 2] if free2 else 0.0)
+        g0 = 0.5 * (w1 * n2 - w2 * n1)
+        g1 = 0.5 * (w2 * n0 - w0 * n2)
+        g2 = 0.5 * (w0 * n1 - w1 * n0)
+        out[r, 18], out[r, 19], out[r, 20] = g0, g1, g2
+        f = (xp - xl) / dt
+        a_ext[r, 0] -= g0 * f
+        a_ext[r, 1] -= g1 * f
+        a_ext[r, 2] -= g2 * f
+    for q in range(x_last.shape[0]):
+        x_last[q] = 0.0
+    for r in range(k):
+        x_last[pair[r]] = _nonneg(x[r])
+    return live

@@ -125,6 +125,7 @@ class StepTracker:
                 rot.append(range(a, a + 3))
         self._rot = np.array(rot, dtype=int).reshape(-1, 3)
         self._vbar = np.zeros(model.nv)
+        self._bad_q = np.zeros(model.nq, bool)  # the coordinates off the step's image (off_image)
 
     def classify(self, d: mujoco.MjData) -> str:
         m = self.model
@@ -166,11 +167,13 @@ class StepTracker:
         else what differs (and the trees that differ in ``jumped``)."""
         m = self.model
         if not rk4 and m.nv:
-            # the usual semi-implicit step (no coordinate off the image) in one compiled pass,
-            # the same test as below without its temporaries
-            qvel = d.qvel
-            if not off_image(self._image(qvel, h), d.qpos, self.q0, qvel, h, JUMP_VTOL):
+            # semi-implicit: qpos advanced with the new velocity (a qvel written between steps
+            # breaks that too); the coordinates off the image in one compiled pass
+            # (engines.mujoco._kernels.off_image: the tolerance below)
+            bad_q = self._bad_q
+            if not off_image(self._image(d.qvel, h), d.qpos, self.q0, d.qvel, h, JUMP_VTOL, bad_q):
                 return ""
+            return self._jumped_trees(np.unique(self._qtree[bad_q]))
         vmax = float(np.max(np.abs(d.qvel))) if m.nv else 0.0
         tol_q = JUMP_VTOL * h * (1.0 + vmax) + 1e-13 * (1.0 + np.abs(self.q0))
         if rk4:
@@ -186,17 +189,18 @@ class StepTracker:
             v_new = (v0 + (self.v[1] - v0) / 3.0 + 2.0 * (self.v[2] - v0) / 3.0 + (self.v[3] - v0) / 3.0
                      + (h / 6.0) * d.qacc_warmstart)
             bad_v = np.abs(v_new - d.qvel) > JUMP_VTOL * (1.0 + np.abs(d.qvel))
-        else:
-            # semi-implicit: qpos advanced with the new velocity (a qvel written between steps
-            # breaks that too)
+        else:  # no dofs
             bad_q = np.abs(self._image(d.qvel, h) - d.qpos) > tol_q
             bad_v = np.zeros(m.nv, dtype=bool)
-        trees = set(self._qtree[bad_q].tolist()) | set(m.dof_treeid[bad_v].tolist())
-        if trees:
-            self.jumped = np.array(sorted(trees))
-            return (f"qpos/qvel of {len(trees)} kinematic tree(s) are not the step's image of the last state "
-                    "(qpos or qvel written between steps)")
-        return ""
+        return self._jumped_trees(np.union1d(self._qtree[bad_q], m.dof_treeid[bad_v]))
+
+    def _jumped_trees(self, trees: np.ndarray) -> str:
+        """'' if no tree jumped, else the reason, with the trees (sorted, unique) in ``jumped``."""
+        if not trees.size:
+            return ""
+        self.jumped = trees
+        return (f"qpos/qvel of {trees.size} kinematic tree(s) are not the step's image of the last state "
+                "(qpos or qvel written between steps)")
 
     def _image(self, vbar: np.ndarray, h: float) -> np.ndarray:
         """The start qpos advanced by vbar over h with MuJoCo's own

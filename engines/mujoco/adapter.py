@@ -545,6 +545,11 @@ class MujocoAdapter(EngineAdapter):
             self._group_of = np.full(P, -1, np.int64)  # position in the free group of each pair (-1: slow)
             self._group_of[self._fast.index] = np.arange(self._fast.index.size)
             self._no_points = np.zeros((0, 3))  # p1, p2 when there is no free group
+            self._lever_scratch = np.empty((9, 3, 3))
+            # the free group's pairs as an index: a slice when they are consecutive (cheaper to assign)
+            idx = self._fast.index
+            span = idx.size and np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size))
+            self._fast_at = slice(int(idx[0]), int(idx[0]) + idx.size) if span else idx
         self.manager.set_body_probe(self._probe, batch=self._probe_batch)
         self.manager.set_orientation_free([[_orientation_free(model, p.geom1, p.body1, p.fixed1),
                                             _orientation_free(model, p.geom2, p.body2, p.fixed2)]
@@ -946,7 +951,12 @@ class MujocoAdapter(EngineAdapter):
         and their a_ext restarts from gravity; the other pairs step on."""
         self._forces_before_jump = self.last_forces
         trees = self._tracker.jumped
-        hit = np.ones(len(self._pairs), bool) if trees is None else np.isin(self._trees, trees).any(axis=1)
+        if trees is None:
+            hit = np.ones(len(self._pairs), bool)
+        else:  # np.isin(self._trees, trees).any(axis=1) by a table over the tree ids (-1: the world)
+            jumped = np.zeros(int(self.model.ntree) + 1, bool)
+            jumped[np.asarray(trees, dtype=np.int64) + 1] = True
+            hit = jumped[self._trees + 1].any(axis=1)
         if not np.any(hit):
             return
         self.jumps += 1
@@ -1221,7 +1231,7 @@ class MujocoAdapter(EngineAdapter):
                 raise RuntimeError(f"free-group detection failed (code {err}) where the numpy detection passes")
             fast = dict(pair=pair, x=x, normal=nrm, point=point, v_rel=v_rel, v_com_rel=v_com, W=W, W_com=W_com,
                         a_ext=a_ext)
-            self._p1[f.index], self._p2[f.index] = p1, p2
+            self._p1[self._fast_at], self._p2[self._fast_at] = p1, p2
         slow, points, jacs = self._slow_rows(required) if self._slow else (None, {}, [])
         self._keep_points(points)
         self._apply = []
@@ -1305,6 +1315,16 @@ class MujocoAdapter(EngineAdapter):
         velocities at two different points when the overlap changed: it loses that part,
         g0 (max(x, 0) - max(x_last, 0))/dt, which the manager now integrates itself (d' g)."""
         pair = np.asarray(kin.pair, dtype=int)
+        if self.compiled:  # the same in one compiled pass (engines.mujoco._kernels.lever_free)
+            # (kin's arrays are this step's own, made by _compute_compiled: a_ext is changed in place)
+            d = self.data
+            out = np.empty((pair.size, 21))
+            kin.a_ext = np.asarray(kin.a_ext, dtype=float)
+            live = self._kernels.lever_free(self._gi, self._gf, self._group_of, pair, np.asarray(kin.x, dtype=float),
+                                            np.asarray(kin.normal, dtype=float), kin.a_ext, self.manager.settled,
+                                            self._x_last, d.cvel, d.xipos, d.ximat, self._p1, self._p2,
+                                            self.timestep, out, self._lever_scratch)
+            return out if live else None
         live = self._is_fast[pair] & ~self.manager.settled[pair]
         xpos = np.maximum(np.asarray(kin.x, dtype=float), 0.0)
         x_last = self._x_last[pair]
