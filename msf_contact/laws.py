@@ -323,6 +323,12 @@ class MSFLaw(ForceLaw):
             xm = np.array([_scaling.unit_impact(float(g), float(e), self.separation).x_max
                            for g, e in zip(gam, eps)])
             return np.full(v.shape, self.omega), x0 * xm
+        if self.kp_mode == "msf" and not exact and bool(np.all(eps <= _scaling.EPS_NODES[-1])):
+            # every row in the table (the engines' usual case): the same values without the row selection
+            tab = _scaling.eps_table(tg, self.separation)(eps)
+            gam, tau, xm = tab["gamma"], tab["tau"], tab["x_max"]
+            omega = np.where(gam > 0, 3.0 * tg / np.where(gam > 0, gam, 1.0) / t0, math.pi / (tau * t0))
+            return omega, x0 * xm
         gam, tau, xm = (np.empty_like(eps) for _ in range(3))
         in_table = np.zeros(eps.shape, bool)
         if self.kp_mode == "msf" and not exact:

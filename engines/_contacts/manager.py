@@ -207,6 +207,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self._scr_settled = (np.empty(6), np.empty((4, 3, 3)), np.empty((8, 3)), np.empty((3, 4)))
         self._scr_rk4 = (np.empty(6), np.empty((5, NY)), np.empty((4, NY)))
         self._params: dict[int, dict] = {}  # law.parameters() per group, copied into each record
+        self._floor_K: dict[int, float] = {}  # state.onset_stiffness per group (the onset speed floor)
 
     @property
     def active_count(self) -> int:

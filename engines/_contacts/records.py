@@ -21,6 +21,7 @@ from .. import _kernel as K
 from .state import (
     ENERGY_GAIN_RTOL, _Q, _WEL, _WT, _WVI, PENDING_MAX_STEPS, ROTATION_PER_STEP_MAX,
     SUBSTEPS_PER_CONTACT, SUBSTEPS_PER_TANGENTIAL, _duration_estimate, _pc, _plain, _Rows, onset_speed_floor,
+    onset_stiffness,
 )
 
 
@@ -52,7 +53,10 @@ class Records:
         if bad >= 0:
             nWn = np.einsum("ki,kij,kj->k", batch.n[new], batch.W[new], batch.n[new])
             raise ValueError(f"n.W.n = {nWn!r} 1/kg must be > 0 (both bodies fixed, or W is wrong)")
-        v_used = np.maximum(vn, onset_speed_floor(law, m, a_n))
+        K_floor = self._floor_K.get(g)
+        if K_floor is None:
+            K_floor = self._floor_K[g] = onset_stiffness(law)
+        v_used = np.maximum(vn, onset_speed_floor(law, m, a_n, K_floor))
         o = law.onset(v_used, m)
         # store per pair (group arrays created on first use)
         store = self._onset[g]
@@ -90,7 +94,8 @@ class Records:
         (scalar arithmetic on Python floats: this runs once per impact)."""
         law = self.pairs[p].law
         g = self._group_of[p]
-        onset = {k: float(v[self._pos[p]]) for k, v in self._onset[g].items()}
+        pos = self._pos[p]
+        onset = {k: float(v[pos]) for k, v in self._onset[g].items()}
         yl, nl = ye.tolist(), n.tolist()
         v = yl[1:4]
         xd_end = -(v[0] * nl[0] + v[1] * nl[1] + v[2] * nl[2])

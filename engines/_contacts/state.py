@@ -185,7 +185,7 @@ def closing_distance(xdot, xddot, dt: float, safety: float = 2.0) -> np.ndarray:
     return safety * (xd * dt + 0.5 * xdd * dt * dt)
 
 
-def onset_speed_floor(law: ForceLaw, m_eff, a_n) -> np.ndarray:
+def onset_speed_floor(law: ForceLaw, m_eff, a_n, K: float | None = None) -> np.ndarray:
     """Smallest onset speed used for the onset constants [m/s] (n,).
 
     sqrt(2 a_n x_s): the speed gained falling through the static overlap x_s,
@@ -193,12 +193,20 @@ def onset_speed_floor(law: ForceLaw, m_eff, a_n) -> np.ndarray:
     (a_n: external closing acceleration along the normal); at least
     V_ONSET_MIN. A contact that begins slower is settling under a_n: its
     damping is then that of a contact at this speed, not an unbounded one.
+    K [N/m^1.5]: the law's 2/3 E' psi(0) (:func:`onset_stiffness`) if the caller keeps it.
     """
     m = np.asarray(m_eff, dtype=float)
     a = np.maximum(np.asarray(a_n, dtype=float), 0.0)
-    K = 2.0 / 3.0 * law.moduli.E * float(law.psi(np.zeros(1))[0])
+    if K is None:
+        K = onset_stiffness(law)
     x_s = (m * a / K) ** (2.0 / 3.0)
     return np.maximum(np.sqrt(2.0 * a * x_s), V_ONSET_MIN)
+
+
+def onset_stiffness(law: ForceLaw) -> float:
+    """2/3 E' psi(0) of (29) [N/m^1.5]: the law's elastic stiffness at x -> 0
+    (:func:`onset_speed_floor`)."""
+    return 2.0 / 3.0 * law.moduli.E * float(law.psi(np.zeros(1))[0])
 
 
 def _duration_estimate(law: ForceLaw, onset: dict, m, v) -> np.ndarray:

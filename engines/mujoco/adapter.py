@@ -1625,9 +1625,9 @@ class MujocoAdapter(EngineAdapter):
         if int(self.model.body_weldid[body]) == 0:
             return np.zeros(3)
         d = self.data
-        w, v = d.cvel[body, :3], d.cvel[body, 3:]
-        r = d.xipos[body] - d.subtree_com[self.model.body_rootid[body]]
-        return v + np.array([w[1] * r[2] - w[2] * r[1], w[2] * r[0] - w[0] * r[2], w[0] * r[1] - w[1] * r[0]])
+        w0, w1, w2, v0, v1, v2 = d.cvel[body].tolist()  # the same float arithmetic on Python floats
+        r0, r1, r2 = (d.xipos[body] - d.subtree_com[self.model.body_rootid[body]]).tolist()
+        return np.array([v0 + (w1 * r2 - w2 * r1), v1 + (w2 * r0 - w0 * r2), v2 + (w0 * r1 - w1 * r0)])
 
     def separating(self, i: int) -> bool:
         """True if body 1 of pair i moves away from body 2 along the contact
