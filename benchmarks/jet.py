@@ -9,7 +9,10 @@ leave ~1.3 GB, which would dilute any growth), after a short warm-up run
 there (WARMUP_IMPACTS: loads, in a fresh checkout compiles, the numba
 kernels and builds the onset tables). The record gives impacts per
 CPU-second over the whole timed run (what the target is checked against)
-and after its first checkpoint (``impacts_per_cpu_s_after_first``). If the
+and after its first checkpoint (``impacts_per_cpu_s_after_first``). A last
+record (``jet_pp``) gives the rate of the jet with particle-particle
+contacts on (MuJoCo, one size class: :func:`_pp_profile`), reported
+without a target. If the
 jet scenario or its configuration is missing, or the run fails, the
 benchmark records a skip with the reason instead of failing the whole run.
 """
@@ -57,6 +60,39 @@ def _profile(engine: str, checkpoints: tuple[int, ...]) -> list[dict]:
     return J.memory_profile(engine, spec, checkpoints=checkpoints)
 
 
+#: Plate impacts of the particle-particle jet (PP_IMPACTS, quick: PP_IMPACTS_QUICK): at ~13 impacts per
+#: CPU-second (docs/benchmarks.md) ~20 s; it is reported, not held to a target.
+PP_IMPACTS, PP_IMPACTS_QUICK = 250, 30
+
+
+def _pp_profile(impacts: int) -> dict:
+    """experiments/configs/jet.toml's jet with particle-particle contacts on (the jet of
+    ``scripts/jet_check.py pp-rate``: one size class, 0.25 mm), MuJoCo, in the worker: impacts per
+    CPU-second of the pool (its own time.process_time) after a warm-up of a tenth of them."""
+    import math
+    import warnings
+
+    from experiments.scenarios.jet import JetSpec, Nozzle, Particles, Plate, make_pool
+    from msf_contact import ValidityWarning, preset
+
+    a = math.radians(45.0)
+    spec = JetSpec(Nozzle.aimed((0.0, 0.0), (math.cos(a), 0.0, -math.sin(a)), 0.02, 20.0, 1e-3),
+                   Particles(preset("glass"), (2.5e-4,), (1.0,), 30.0, 3.0, 1e5), Plate(preset("polyurethane")),
+                   particle_particle=True, dt=1e-4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ValidityWarning)  # the records carry it (outside_validity)
+        with make_pool("mujoco", spec, 0) as pool:
+            pool.run(max(1, impacts // 10))
+            i0, c0, pp0 = pool.counts.impacts, pool.cpu_s, pool.counts.pp_impacts
+            pool.run(i0 + impacts)
+            di, dc = pool.counts.impacts - i0, pool.cpu_s - c0
+            return {"name": "jet_pp", "engine": "mujoco", "n_bodies": pool.n, "dt": spec.dt, "impacts": di,
+                    "cpu_s": dc, "impacts_per_cpu_s": di / dc if dc > 0 else None,
+                    "pp_records": pool.counts.pp_impacts - pp0, "pp_pairs": len(pool.pp_pairs),
+                    "median": "one run after a warm-up of a tenth of the impacts (CPU time of the pool)",
+                    "repeats": 1}
+
+
 def run(quick: bool = False) -> list[dict]:
     try:
         from experiments.config import load_toml
@@ -98,4 +134,14 @@ def run(quick: bool = False) -> list[dict]:
                     "target_met": (rate >= TARGET_IMPACTS_PER_CPU_S and abs(growth) <= MEMORY_RTOL)
                     if engine == "mujoco" else None,
                     "median": "one continuous run (CPU time of the pool)", "repeats": 1})
+    impacts = PP_IMPACTS_QUICK if quick else PP_IMPACTS
+    log(f"jet: mujoco with particle-particle contacts, {impacts} impacts")
+    try:
+        with ProcessPoolExecutor(1, mp_context=multiprocessing.get_context("spawn")) as ex:
+            r = ex.submit(_pp_profile, impacts).result()
+    except Exception as exc:  # noqa: BLE001
+        return out + _skip(f"mujoco with particle-particle contacts failed ({type(exc).__name__}: {exc})")
+    log(f"jet: mujoco with particle-particle contacts: {r['impacts_per_cpu_s']:.1f} impacts per CPU-second "
+        f"({r['pp_records']} particle-particle records, pool {r['n_bodies']}, {r['pp_pairs']} pairs)")
+    out.append(r)
     return out

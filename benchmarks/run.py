@@ -135,6 +135,10 @@ def markdown(records: list[dict], mach: dict, command: str) -> str:
                 lines.append(f"- {r['engine']}: {r['impacts_per_cpu_s']:.0f} impacts per CPU-second over "
                              f"{r['impacts']} impacts; RSS change {r['rss_growth'] * 100:+.1f}% from the first "
                              "to the last checkpoint")
+        for r in (r for r in records if r["name"] == "jet_pp"):
+            lines.append(f"- {r['engine']} with particle-particle contacts (one 0.25 mm class, {r['n_bodies']} beads, "
+                         f"{r['pp_pairs']} pairs): {r['impacts_per_cpu_s']:.1f} impacts per CPU-second over "
+                         f"{r['impacts']} impacts, {r['pp_records']} particle-particle records (no target)")
         lines.append("")
     lines += targets_md(records)
     return "\n".join(lines) + "\n"

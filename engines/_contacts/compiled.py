@@ -102,8 +102,9 @@ class CompiledPath:
                     new = new_all[grp == g]
                     self._begin(g, self._groups[g], p, new, y, rows, t0 + t_loc[new])
                     store, pp = self._onset[g], p[new]
+                    pos = self._pos[pp]
                     for j, key in enumerate(K.ONSET_KEYS[self._kernel_law[g][0]]):
-                        oc[pp, j] = store[key][self._pos[pp]]
+                        oc[pp, j] = store[key][pos]
                 in_c[new_all] = True
                 info["onsets"] += int(new_all.size)
         else:

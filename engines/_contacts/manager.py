@@ -25,7 +25,7 @@ from .island_compiled import island_blocks, step_islands
 from .islands import TOUCH_TOL, islands, step_island
 from .state import (
     L_G0, L_ON, L_W01, L_W11, L_XREF, NL, NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES,
-    _dot, _name,
+    _cross, _dot, _name,
 )
 
 
@@ -344,7 +344,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             if np.any(own):
                 q = pair[own]
                 PD = -(self.x_J[q] - L[own, L_XREF])[:, None] * J_old[own]
-                self.couple[q] += 0.5 * np.cross(n[own], PD)
+                self.couple[q] += 0.5 * _cross(n[own], PD)
             self.x_J[pair] = L[:, L_XREF]
             out.torque = self.couple[pair] / self.dt
         self._listed[:] = False

@@ -61,6 +61,7 @@ class Records:
         # store per pair (group arrays created on first use)
         store = self._onset[g]
         size = self._group_size[g]
+        pos = self._pos[pp]
         o_new = {}
         for key, val in o.items():
             if not (type(val) is np.ndarray and val.dtype == np.float64 and val.shape == pp.shape):
@@ -68,7 +69,7 @@ class Records:
             o_new[key] = val
             if key not in store:
                 store[key] = np.full(size, np.nan)
-            store[key][self._pos[pp]] = val
+            store[key][pos] = val
         if not isinstance(batch, _Rows):  # the numpy path's batch carries its rows' onset constants
             batch.onset = {key: arr[self._pos[p]] for key, arr in store.items()}
         # duration estimate -> internal step, and the bookkeeping

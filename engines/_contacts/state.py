@@ -239,6 +239,17 @@ def _dot(a, b):
     return np.einsum("ij,ij->i", a, b)
 
 
+def _cross(a, b):
+    """np.cross of two (k, 3) arrays, the same products and differences (equal bit for bit)
+    without np.cross's axis handling (~3x its cost for a few rows)."""
+    out = np.empty(a.shape)
+    a0, a1, a2, b0, b1, b2 = a[:, 0], a[:, 1], a[:, 2], b[:, 0], b[:, 1], b[:, 2]
+    out[:, 0] = a1 * b2 - a2 * b1
+    out[:, 1] = a2 * b0 - a0 * b2
+    out[:, 2] = a0 * b1 - a1 * b0
+    return out
+
+
 def _msf_inline(law: ForceLaw) -> bool:
     """True when the law's normal and tangential forces are MSFLaw's own, so
     :meth:`_Batch.rhs` may evaluate them inline (one k_p and one sqrt(x) for
