@@ -144,6 +144,7 @@ class Records:
             Pc_F = (1.5 * self.F_max[p] / float(area(self.x_at_F[p], law.geom, law.kp_mode))
                     if self.x_at_F[p] > 0 else 0.0)
         W_el, W_vi = yl[_WEL], yl[_WVI]
+        self.W_tq_finished[p] += yl[_WT] - yl[_Q]  # engines._contacts.balance: kept past the contact's end
         params = self._params.get(g)
         if params is None:
             params = self._params[g] = law.parameters()
@@ -252,6 +253,7 @@ class Records:
         self.dvc_corr[sel] = 0.0
         self._held_force[sel] = 0.0
         self.in_island[sel] = False
+        self._island_of[sel] = -1
         self._listed[sel] = False
         if self._balance is not None:  # a state jump is not an island's work (engines._contacts.balance)
             self._balance.forget(np.flatnonzero(sel))
