@@ -17,7 +17,8 @@ in contact, otherwise classical RK4 of the whole island at the internal step
 of its stiffest contact (``min(h_p, _stiff_step)``), with the first maximum
 compressions located inside a substep and the earliest end or onset of the
 island found by Illinois root finding on a partial RK4 step of the whole
-island (no Coulomb slip correction: step_island's RK4 has none).
+island, each RK4 step followed by the Coulomb slip of the rows in contact
+(engines._kernel.slip, as step_island's _Island.rk4).
 
 The islands are stored CSR-style: the rows of island i are io[i]..io[i+1]-1
 of the (k, ...) row arrays, its coupling entries cio[i]..cio[i+1]-1 of cp,
@@ -110,6 +111,10 @@ def _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, 
     for r in range(r0, r1):
         for j in range(NY):
             out[r, j] = y[r, j] + h / 6.0 * (k1[r, j] + 2.0 * k2[r, j] + 2.0 * k3[r, j] + k4[r, j])
+    for r in range(r0, r1):  # the Coulomb slip of the rows in contact (step_island's _Island.rk4)
+        if in_c[r]:
+            kr = kg[r]
+            K.slip(codes[kr], LC[kr], oc, pairs[r], n[r], T[r], paper[r], y[r], out[r], h, buf)
 
 
 @jit

@@ -187,9 +187,9 @@ class _Island:
     def rk4(self, y, h, in_c):
         """One RK4 step of length h [s] of the island, then the Coulomb slip of
         the tangential springs of the rows in contact (_Batch.slip, as the
-        rows' own path: without it s kept growing on the cap, the spring held
-        the slip as stored energy and gave it back as the normal overlap grew,
-        up to 2e-5 J in one step in the 8-sphere pile)."""
+        rows' own path: without it the spring displacement s of a sliding
+        row kept growing past mu F_n / k, so its force stayed on the cap
+        after the slip reversed and k |s|^2 / 2 held slip as stored energy)."""
         k1, Fn, Ft = self.rhs(y, in_c)
         k2, _, _ = self.rhs(y + 0.5 * h * k1, in_c)
         k3, _, _ = self.rhs(y + 0.5 * h * k2, in_c)

@@ -555,8 +555,9 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         missing a row began its step from the engine's velocity with a
         neighbour's correction left in (a rubber ball in the 8-sphere pile
         read 0.055 m/s too fast toward the floor after a sphere-sphere
-        impact on it; its gap then closed early and the contact gave back
-        more than it took: up to 3e-5 J in one step, scripts/pile.py)."""
+        impact on it, and as the manager keeps its own gap (_own_gaps) the
+        contact began while the engine's spheres were still 55 um apart;
+        tests/test_pile.py)."""
         stale = pair[~self._listed[pair]]
         self.dv_corr[stale] = 0.0
         self.dvc_corr[stale] = 0.0
