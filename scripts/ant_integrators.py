@@ -4,11 +4,19 @@ Euler at its own 10 ms step: the numbers docs/engines.md ("Robot models")
 quotes.
 
     .venv/bin/python scripts/ant_integrators.py [--steps 300]
+    .venv/bin/python scripts/ant_integrators.py --rest [--torque-steps 60 --rest-steps 300]
 
 Seeded random torques (uniform in the control range, seed 13) for the first
 half of the steps, none after. Per integrator: the step tracker's jumps and
 the contacts they interrupted, the impact records and how many are flagged
 (outside_validity), the torso height's minimum, maximum and end [m].
+
+``--rest``: after the torques, the energy at rest (kinetic of the physical
+velocities + gravity + the contacts' stored energy, robots.mechanical_energy)
+with and without the joint limits' stored energy (robots.limit_energy): over
+the rest phase after its first fifth, the steps where it rises by more than
+1 uJ, the largest rise, and how many of the rising steps had a contact found
+deep at its onset (flagged, MujocoAdapter.deep_onsets) and the rise they carry.
 """
 
 from __future__ import annotations
@@ -47,10 +55,60 @@ def run(integrator: str, steps: int) -> dict:
             "z_min": min(z), "z_max": max(z), "z_end": z[-1]}
 
 
+def rest(integrator: str, torque_steps: int, rest_steps: int) -> None:
+    import mujoco
+    import numpy as np
+    import pybullet_data
+
+    from engines.mujoco import MujocoAdapter, installed
+    from engines.mujoco.robots import load_with_msf_floor, mechanical_energy
+    from msf_contact import ContactPair, preset
+
+    path = os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml")
+    model, data, pairs = load_with_msf_floor(path, ContactPair(preset("natural-rubber"), preset("steel")))
+    model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        adapter = MujocoAdapter(model, data, pairs)
+        rng = np.random.default_rng(13)
+        lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
+        E = {False: [], True: []}
+        deep = []
+        with installed(adapter):
+            for _ in range(torque_steps):
+                data.ctrl[:] = rng.uniform(lo, hi)
+                mujoco.mj_step(model, data)
+            data.ctrl[:] = 0.0
+            for _ in range(rest_steps):
+                mujoco.mj_step(model, data)
+                v = data.qvel - adapter.velocity_offset()
+                stored = adapter.manager.stored_energy()
+                for lim in (False, True):
+                    E[lim].append(mechanical_energy(model, data, v, limits=lim) + stored)
+                deep.append(adapter.deep_onsets)
+    s0 = rest_steps // 5
+    new_deep = np.diff(np.array(deep[s0:])) > 0
+    for lim in (False, True):
+        d = np.diff(np.array(E[lim][s0:]))
+        up = d > 1e-6
+        print(f"| {integrator} | {'with' if lim else 'without'} | {int(up.sum())} of {d.size} | "
+              f"{1e3 * float(d.max()):.3g} | {int((up & new_deep).sum())} ({1e3 * float(d[up & new_deep].sum()):.4g} mJ) |",
+              flush=True)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--steps", type=int, default=300)
+    ap.add_argument("--rest", action="store_true", help="the energy at rest, with and without the limits")
+    ap.add_argument("--torque-steps", type=int, default=60)
+    ap.add_argument("--rest-steps", type=int, default=300)
     a = ap.parse_args(argv)
+    if a.rest:
+        print("| integrator | limits' energy | steps rising > 1 uJ | largest rise [mJ] | of them with a deep onset |")
+        print("|---|---|---|---|---|")
+        for integ in ("rk4", "euler"):
+            rest(integ, a.torque_steps, a.rest_steps)
+        return 0
     print("| integrator | jumps | interrupted | records | flagged | torso z min / max / end [m] |")
     print("|---|---|---|---|---|---|")
     for integ in ("rk4", "euler"):

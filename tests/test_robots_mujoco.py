@@ -50,3 +50,93 @@ def test_robot_model_runs_and_gains_no_energy_without_torques(name, torque_steps
     E = np.array(E)
     start = rest_steps // 5
     assert np.max(E[start:] - E[start]) <= ENERGY_ATOL
+
+
+def _pressed_bar(integrator: str, torque: float):
+    """A rubber box bar (100 x 20 x 20 mm, 0.2 kg, edge radius 5 mm: its
+    corners touch, solved together) on a hinge at one end, lying 1 mm above a steel floor, no
+    gravity, dt = 10 ms, pressed down by a motor on during steps 10-19 with
+    ``torque`` [N m], then released: (adapter, warnings)."""
+    import warnings
+
+    from engines.base import PairSpec
+    from msf_contact import Curvature, make_law
+
+    r = 0.01
+    xml = (f'<mujoco><option timestep="0.01" integrator="{integrator}" gravity="0 0 0"/><worldbody>'
+           '<geom name="floor" type="plane" size="1 1 0.1"/>'
+           f'<body name="bar" pos="0 0 {r + 0.001}"><joint name="hinge" type="hinge" axis="0 1 0"/>'
+           f'<geom name="g" type="box" pos="0.05 0 0" size="0.05 {r} {r}" mass="0.2"/></body></worldbody>'
+           '<actuator><motor joint="hinge" gear="1" ctrlrange="-10 10"/></actuator>'
+           '<contact><exclude body1="world" body2="bar"/></contact></mujoco>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(5e-3))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        adapter = MujocoAdapter(model, data, [PairSpec("g", "floor", law)], edge_radii={"g": 5e-3})
+        with installed(adapter):
+            for i in range(40):
+                data.ctrl[0] = torque if 10 <= i < 20 else 0.0
+                mujoco.mj_step(model, data)
+    return adapter, [str(w.message) for w in caught]
+
+
+def test_a_link_found_deep_at_its_onset_is_flagged_and_warned():
+    """Never silent (issue 13, the MSF ant): a motor switched on inside a
+    step drives a link into the floor where the contacts' free flight (the
+    last step's accelerations) does not put it, and its corners begin
+    already overlapping, holding elastic energy no force worked for
+    (measured under Euler: 0.48 mm, 1.4 mJ, 1.8 times the contacts'
+    approach energy, COR 1.52; the resting ant's feet 0.2-0.4 mm, up to
+    3.4 mJ; the ant's ankle under RK4 26 mm, 111 J, COR 3.9). Each such
+    contact is flagged in its outside_validity and warned once per pair."""
+    adapter, messages = _pressed_bar("Euler", 0.1)
+    assert adapter.deep_onsets >= 1
+    deep = [m for m in messages if "deep at its onset" in m]
+    assert deep and len(deep) == len({m.split(":")[0] for m in deep})  # once per pair
+    assert any(any("deep at its onset" in note for note in r.outside_validity) for r in adapter.records)
+    assert not any("under RK4" in m for m in messages)
+
+
+def test_rk4_on_links_is_warned_once_naming_the_fix():
+    """MSF pairs on links of a chain under RK4 (the MSF ant hops to 6 m
+    there, 2 impacts flagged; free bodies are as under Euler): one
+    RuntimeWarning naming the pairs and Euler / implicitfast."""
+    adapter, messages = _pressed_bar("RK4", 0.0)
+    rk4 = [m for m in messages if "under RK4 on links" in m]
+    assert len(rk4) == 1 and "implicitfast" in rk4[0] and "('g', 'floor')" in rk4[0]
+
+
+#: A pendulum held at rest by its joint limit: the limit's stored energy
+#: against 1/2 f r of MuJoCo's own constraint force; measured 1e-6 (the
+#: solver's residual); the stiffness D K alone, without the impedance, was 5 %
+#: above.
+LIMIT_ENERGY_RTOL = 1e-3
+
+
+def test_limit_energy_is_the_limit_spring_of_mujocos_own_force():
+    """engines.mujoco.robots.limit_energy against an independent reading: a
+    1 kg bar (300 mm) on a hinge limited to +-10 deg, let go beyond the limit
+    under gravity and settled: the solver's static force f on the limit row
+    and its violation r give the spring's 1/2 f r."""
+    from engines.mujoco.robots import limit_energy
+
+    xml = ('<mujoco><option timestep="0.001"/><worldbody><body name="p" pos="0 0 1">'
+           '<joint name="h" type="hinge" axis="0 1 0" range="-10 10" limited="true"/>'
+           '<geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.02" mass="1"/></body></worldbody></mujoco>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qpos[0] = np.radians(10.0)
+    for _ in range(5000):
+        mujoco.mj_step(model, data)
+    mujoco.mj_forward(model, data)
+    n = data.nefc
+    rows = data.efc_type[:n] == mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT
+    assert rows.sum() == 1 and abs(data.qvel[0]) < 1e-9
+    r = float((data.efc_pos - data.efc_margin)[:n][rows][0])
+    f = float(data.efc_force[:n][rows][0])
+    assert r < 0 and f > 0
+    assert limit_energy(model, data) == pytest.approx(0.5 * f * abs(r), rel=LIMIT_ENERGY_RTOL)
+    assert mechanical_energy(model, data, limits=True) - mechanical_energy(model, data) == pytest.approx(
+        0.5 * f * abs(r), rel=LIMIT_ENERGY_RTOL)

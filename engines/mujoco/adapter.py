@@ -102,7 +102,7 @@ import mujoco
 import numpy as np
 
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
-from engines._contacts.state import CENTRED_RTOL, lever_terms_free
+from engines._contacts.state import CENTRED_RTOL, ENERGY_GAIN_RTOL, V_ONSET_MIN, lever_terms_free
 from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box, sphere_plane, sphere_sphere
 from engines._sweep import sweep
@@ -116,6 +116,7 @@ from engines.base import (
 )
 from engines.mujoco import _held
 from engines.mujoco._stepping import StepTracker
+from msf_contact._validate import ValidityWarning
 
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times the
 #: distance the surfaces can close in one step (closing speed dt plus the
@@ -154,6 +155,9 @@ _NARROW = ("sphere", "plane", "box", "capsule", "cylinder", "ellipsoid", "mesh")
 #: already below the plane took the slot as a deep onset, COR 22 in a step),
 #: takes more through the adapter's ``mesh_slots``.
 NARROW_SLOTS = {"box": 4, "cylinder": 4, "capsule": 2}
+#: Gauss-Legendre nodes for a contact's elastic energy at its onset overlap (as
+#: ContactManager.stored_energy: exact for the x^(3/2) and linear laws to round-off)
+DEEP_NODES, DEEP_WEIGHTS = np.polynomial.legendre.leggauss(8)
 _ZERO3 = np.zeros(3)  # what body 2 may be; body 1 is a sphere
 
 
@@ -597,6 +601,16 @@ class MujocoAdapter(EngineAdapter):
                                     and model.jnt_type[model.body_jntadr[b]] == mujoco.mjtJoint.mjJNT_FREE
                                     for b in range(model.nbody)])
         self.manager.set_energy_probe(self._energy_probe)
+        #: pairs with a body that is a link of a chain (neither welded nor a single free body): their
+        #: island contacts are checked for an onset found deep (_check_deep_onsets)
+        self._link_pairs = np.array([any(not self._free_body[b] and int(model.body_weldid[b]) != 0
+                                         for b in (p.body1, p.body2)) for p in self._pairs], dtype=bool)
+        self._rk4_checked = None
+        self._warn_rk4_links()
+        #: contacts found deep at their onset on a link (flagged; _check_deep_onsets)
+        self.deep_onsets = 0
+        self._deep_warned: set[int] = set()
+        self._deep_flagged_at: dict[int, float] = {}
         #: number of engine steps run through :meth:`step`
         self.steps = 0
         #: the manager's step-averaged forces of the last step (None: no candidate)
@@ -1029,6 +1043,77 @@ class MujocoAdapter(EngineAdapter):
         self._narrow_key, self._narrow_found = key, out
         return out
 
+    def _warn_rk4_links(self) -> None:
+        """Warn once (RuntimeWarning) when the model runs RK4 with MSF pairs on
+        links of a chain: the contact's step-averaged force is held through
+        RK4's four stages and its free flight follows semi-implicit Euler, so
+        a link whose drives or joint limits move it inside the step is met
+        where the contact did not integrate it. Measured: the MSF ant
+        (pybullet_data ant.xml, RK4 at its own 10 ms, seeded torques;
+        scripts/ant_integrators.py) hops to 6.0 m with 2 of 12 impacts
+        flagged (COR 2.9, energy from outside the contact; COR 3.9, an ankle
+        found 26 mm inside the floor), under Euler below 0.84 m with none of
+        81. Free bodies under RK4 are as under Euler (tests/test_mujoco_hook.py).
+        Checked again when the integrator changes."""
+        integ = int(self.model.opt.integrator)
+        if integ == self._rk4_checked:
+            return
+        self._rk4_checked = integ
+        if integ != int(mujoco.mjtIntegrator.mjINT_RK4) or not np.any(self._link_pairs):
+            return
+        names = [f"{i} {self.pair_names[i]}" for i in np.flatnonzero(self._link_pairs)[:4]]
+        more = int(np.count_nonzero(self._link_pairs)) - len(names)
+        warnings.warn(f"MSF under RK4 on links of a chain (pairs {', '.join(names)}{f' and {more} more' if more > 0 else ''}): "
+                      "the contacts' step-averaged force is held through RK4's four stages and their free flight "
+                      "follows semi-implicit Euler, so a link driven inside the step is met where the contact did not "
+                      "integrate it (the MSF ant at 10 ms hops to 6 m, impacts with COR 2.9 and 3.9, flagged); use "
+                      "the Euler or implicitfast integrator (model.opt.integrator), or a smaller timestep",
+                      RuntimeWarning, stacklevel=3)
+
+    def _check_deep_onsets(self, t0: float) -> None:
+        """Never silent: a contact on a link of a chain (not a single free
+        body), solved in an island, that began in this step already
+        overlapping by an x whose elastic energy int_0^x F_n(x', 0) dx' (never
+        worked for: engines._contacts.balance) exceeds ENERGY_GAIN_RTOL of its
+        approach energy 1/2 m v_n^2 (at least 1/2 m V_ONSET_MIN^2) is flagged
+        in its outside_validity and warned once per pair. The island energy
+        check leaves such contacts out (a link's drives and joint limits do
+        work its probe does not see), the single contact's COR check too.
+        Measured: the MSF ant under RK4 at 10 ms (scripts/ant_integrators.py)
+        had an ankle found 26 mm inside the floor at 7 m/s, COR 3.9."""
+        mgr = self.manager
+        new = np.flatnonzero(self._link_pairs & mgr._island_contact & (mgr.x_onset > 0.0)
+                             & (mgr.t_onset >= t0) & (mgr.t_onset < t0 + mgr.dt))
+        for p in new.tolist():
+            if p in self._deep_flagged_at and self._deep_flagged_at[p] == float(mgr.t_onset[p]):
+                continue
+            x = float(mgr.x_onset[p])
+            law = mgr._groups[mgr._group_of[p]]
+            onset = {k: np.full(DEEP_NODES.size, v[mgr._pos[p]]) for k, v in mgr._onset[mgr._group_of[p]].items()}
+            F = law.normal_force(0.5 * x * (DEEP_NODES + 1.0), np.zeros(DEEP_NODES.size), onset)
+            stored = 0.5 * x * float(DEEP_WEIGHTS @ F)
+            m = float(mgr.m_eff[p])
+            approach = 0.5 * m * max(float(mgr.v_n_in[p]) ** 2, V_ONSET_MIN ** 2)
+            if stored <= ENERGY_GAIN_RTOL * approach:
+                continue
+            self._deep_flagged_at[p] = float(mgr.t_onset[p])
+            integ = int(self.model.opt.integrator)
+            why = ("MuJoCo's RK4 moves the positions with its four stages' velocities while the contact's free "
+                   "flight follows semi-implicit Euler: a fast-turning link lands inside the floor within a step; "
+                   "use the Euler or implicitfast integrator, or a smaller timestep"
+                   if integ == int(mujoco.mjtIntegrator.mjINT_RK4) else
+                   "the engine moved the bodies into overlap within a step the contact's free flight did not "
+                   "predict (a fast-turning link, a force acting inside the step); take a smaller timestep")
+            note = (f"contact found {x:.3g} m deep at its onset (dt = {mgr.dt:g} s): its elastic energy there, "
+                    f"{stored:.3g} J, was never worked for ({stored / approach:.3g} of its approach energy "
+                    f"{approach:.3g} J): {why}")
+            mgr.flag_contact(p, note, float(mgr.t_onset[p]))
+            self.deep_onsets += 1
+            if p not in self._deep_warned:
+                self._deep_warned.add(p)
+                warnings.warn(f"pair {p} {self.pair_names[p]}: {note} (warned once per pair; adapter.deep_onsets "
+                              "counts them)", ValidityWarning, stacklevel=4)
+
     def _line_mode(self, k: int, busy) -> str:
         """Line or point contacts for narrow geom pair k (a capsule or
         cylinder on a plane) at the current state: a contact in progress
@@ -1070,7 +1155,9 @@ class MujocoAdapter(EngineAdapter):
     def _line_slots(self, k: int, n_slots: int) -> list:
         """Slots 0 and 1 of narrow geom pair k as its side's two ends (x,
         point, normal), each with its share of the line law at the current
-        pose (engines._narrow.SideEndLaw.set_pose); the other slots free."""
+        pose (engines._narrow.SideEndLaw.set_pose, every step: a pose frozen
+        at each contact's onset left a resting cylinder of the objects
+        scenario with a 3.4 mJ gain against 0.36 mJ); the other slots free."""
         st = self._line[k]
         ends = st["geom"]
         m, d = self.model, self.data
@@ -1243,6 +1330,8 @@ class MujocoAdapter(EngineAdapter):
             kin = self._assemble([b for b in (fast, slow) if b is not None])
         kin.lever = self._lever(kin)
         out: ContactForces = mgr.step(self._mask(kin))
+        self._check_deep_onsets(float(d.time))
+        self._warn_rk4_links()
         self._last_kin, self._last_out = kin, out
         Qc = self._couples(out)
         if self._shared:

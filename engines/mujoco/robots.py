@@ -16,6 +16,7 @@ naming both geoms).
 from __future__ import annotations
 
 import mujoco
+import numpy as np
 
 from engines.base import PairSpec
 from msf_contact.geometry import Curvature
@@ -83,30 +84,69 @@ def load_with_msf_floor(path: str, pair: ContactPair, *, law: str = "msf", edge_
     return model, data, pairs
 
 
-def mechanical_energy(model: mujoco.MjModel, data: mujoco.MjData, qvel=None) -> float:
+def mechanical_energy(model: mujoco.MjModel, data: mujoco.MjData, qvel=None, *, limits: bool = False) -> float:
     """Kinetic plus gravitational potential energy [J] at the current qpos
     and ``qvel`` (default ``data.qvel``; with MSF pass ``data.qvel -
     adapter.velocity_offset()``, the physical velocities), both of the same
     instant: ``mj_energyPos`` and ``mj_energyVel`` on a private MjData after
     ``mj_kinematics``, ``mj_comPos`` and ``mj_makeM`` (after ``mj_step``,
     ``data``'s own derived quantities are those of the step's start, so its
-    potential energy would belong to the last state and the kinetic to this one)."""
+    potential energy would belong to the last state and the kinetic to this one).
+
+    limits: add the energy held in MuJoCo's joint-limit constraints
+    (:func:`limit_energy`), so a limit that pushes a link back gives back
+    what it stored rather than appearing as a gain."""
     s = mujoco.MjData(model)
     s.qpos[:] = data.qpos
     s.qvel[:] = data.qvel if qvel is None else qvel
     if model.nmocap:
         s.mocap_pos[:], s.mocap_quat[:] = data.mocap_pos, data.mocap_quat
-    mujoco.mj_kinematics(model, s)
-    mujoco.mj_comPos(model, s)
-    mujoco.mj_makeM(model, s)
+    if limits:
+        mujoco.mj_fwdPosition(model, s)  # kinematics, com, M and the constraints at this qpos
+    else:
+        mujoco.mj_kinematics(model, s)
+        mujoco.mj_comPos(model, s)
+        mujoco.mj_makeM(model, s)
     flags = model.opt.enableflags
     model.opt.enableflags |= mujoco.mjtEnableBit.mjENBL_ENERGY
     try:
         mujoco.mj_energyPos(model, s)
         mujoco.mj_energyVel(model, s)
-        return float(s.energy[0] + s.energy[1])
+        return float(s.energy[0] + s.energy[1]) + (_limit_energy(model, s) if limits else 0.0)
     finally:
         model.opt.enableflags = flags
 
 
-__all__ = ["FLOOR", "load_with_msf_floor", "mechanical_energy"]
+def limit_energy(model: mujoco.MjModel, data: mujoco.MjData) -> float:
+    """Energy [J] held in MuJoCo's joint-limit constraints at ``data``'s qpos:
+    per violated limit row (``efc_type`` mjCNSTR_LIMIT_JOINT, r = efc_pos -
+    efc_margin < 0), 1/2 D K d r^2 with K the reference acceleration's
+    stiffness and d the impedance (``efc_KBIP[:, 0]`` and ``[:, 2]``, from
+    the joint's ``solref``, 0.02 s for the ant, and ``solimp``) and D = 1/R
+    the constraint's mass (``efc_D``): MuJoCo's soft constraint at rest
+    pushes with D a_ref = -D K d r (``efc_aref``; its documentation,
+    "Computation: soft constraints"), a spring of stiffness D K d in the
+    joint's own units. d varies with r across solimp's width (0.001 rad by
+    default), so this is the spring's energy at the current stiffness, not
+    an exact potential (a pendulum held by its limit: 1/2 f r of the
+    solver's own force to 1e-3). On a private MjData after ``mj_fwdPosition``."""
+    s = mujoco.MjData(model)
+    s.qpos[:] = data.qpos
+    if model.nmocap:
+        s.mocap_pos[:], s.mocap_quat[:] = data.mocap_pos, data.mocap_quat
+    mujoco.mj_fwdPosition(model, s)
+    return _limit_energy(model, s)
+
+
+def _limit_energy(model: mujoco.MjModel, s: mujoco.MjData) -> float:
+    n = s.nefc
+    if n == 0:
+        return 0.0
+    rows = s.efc_type[:n] == mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT
+    r = s.efc_pos[:n] - s.efc_margin[:n]
+    rows &= r < 0.0
+    kbip = s.efc_KBIP[:n][rows]
+    return float(0.5 * np.sum(s.efc_D[:n][rows] * kbip[:, 0] * kbip[:, 2] * r[rows] ** 2))
+
+
+__all__ = ["FLOOR", "limit_energy", "load_with_msf_floor", "mechanical_energy"]
