@@ -397,3 +397,27 @@ def test_probe_angular_velocity_is_mj_object_velocity():
         mujoco.mj_objectVelocity(m, d, mujoco.mjtObj.mjOBJ_BODY, b, res, 0)
         np.testing.assert_array_equal(adapter._angular_velocity(b), res[:3])
     assert np.any(adapter._angular_velocity(m.nbody - 1) != 0.0)
+
+
+def test_add_couples_is_the_numpy_form():
+    """engines.mujoco._kernels.add_couples (the moving contact points' couples
+    on free joints' angular dofs) against the numpy form it replaced,
+    np.add.at(q, dof + 3..5, einsum('kji,kj->ki', xmat[b], tq)), with bodies
+    repeated (their couples add up): equal to an ulp of the largest term
+    (bit for bit where einsum sums the three products in order, as measured)."""
+    from engines.mujoco._kernels import add_couples
+
+    rng = np.random.default_rng(9)
+    nb, m = 7, 40
+    R = np.linalg.qr(rng.normal(size=(nb, 3, 3)))[0]
+    xmat = R.reshape(nb, 9)
+    b = rng.integers(0, nb, size=m)
+    dof = 6 * b
+    tq = rng.normal(size=(m, 3))
+    q0 = rng.normal(size=6 * nb)
+    want = q0.copy()
+    np.add.at(want, dof[:, None] + np.arange(3, 6), np.einsum("kji,kj->ki", xmat[b].reshape(-1, 3, 3), tq))
+    got = q0.copy()
+    add_couples(got, xmat, b.astype(np.int64), dof.astype(np.int64), tq)
+    assert np.all(np.abs(got - want) <= 4e-16 * (np.abs(want) + np.abs(tq).sum()))
+    assert not np.array_equal(got, q0)

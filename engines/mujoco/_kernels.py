@@ -547,3 +547,17 @@ def lever_free(gi, gf, group_of, pair, x, normal, a_ext, settled, x_last, cvel, 
     for r in range(k):
         x_last[pair[r]] = _nonneg(x[r])
     return live
+
+
+@njit(cache=True, error_model="numpy")
+def add_couples(q, xmat, b, dof, tq):
+    """q[dof + 3 + i] += (xmat[b]^T tq)_i for each row: world torques tq (m, 3)
+    [N m] on the free bodies b (m,) whose free joints' first dofs are dof (m,),
+    in body axes, as the adapter's numpy form (np.add.at of
+    einsum('kji,kj->ki', xmat, tq): the products summed in order, the rows
+    added in order)."""
+    for r in range(b.shape[0]):
+        k, a = b[r], dof[r]
+        t0, t1, t2 = tq[r, 0], tq[r, 1], tq[r, 2]
+        for i in range(3):
+            q[a + 3 + i] += (xmat[k, i] * t0 + xmat[k, 3 + i] * t1) + xmat[k, 6 + i] * t2

@@ -1459,8 +1459,18 @@ class MujocoAdapter(EngineAdapter):
         self._add_couples(self.data, Q, b, dof, tq)
         return Q
 
+    def _add_couples(self, d, q, b, dof, tq) -> None:
+        """Add world torques tq (b, 3) on free bodies b to q (nv,): a free joint's angular dofs
+        take the torque in body axes, xmat^T tq (as _FreeGroup.apply); compiled when the adapter
+        is (engines.mujoco._kernels.add_couples, the same sums in the same order)."""
+        if self.compiled:
+            self._kernels.add_couples(q, d.xmat, np.asarray(b, dtype=np.int64), np.asarray(dof, dtype=np.int64),
+                                      np.asarray(tq, dtype=float))
+        else:
+            self._add_couples_numpy(d, q, b, dof, tq)
+
     @staticmethod
-    def _add_couples(d, q, b, dof, tq) -> None:
+    def _add_couples_numpy(d, q, b, dof, tq) -> None:
         """Add world torques tq (b, 3) on free bodies b to q (nv,): a free joint's angular dofs
         take the torque in body axes, xmat^T tq (as _FreeGroup.apply)."""
         np.add.at(q, dof[:, None] + np.arange(3, 6), np.einsum("kji,kj->ki", d.xmat[b].reshape(-1, 3, 3), tq))
