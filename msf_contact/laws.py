@@ -452,9 +452,13 @@ class MSFLaw(ForceLaw):
     def tangential_stiffness(self, x, onset):
         P_bx, P_ax = self.shear_lengths(x)
         G = np.asarray(onset["G"], dtype=float)
-        k = np.stack([G * P_bx, G * P_ax], axis=-1).reshape(-1, 2)
-        b = np.stack([onset["eta_Gy"] * P_bx, onset["eta_Gz"] * P_ax], axis=-1).reshape(-1, 2)
-        return k, b
+        # the two columns assigned into (n, 2) arrays: np.stack's values, at a third of its cost for a few rows
+        kx, ky = G * P_bx, G * P_ax
+        bx, by = onset["eta_Gy"] * P_bx, onset["eta_Gz"] * P_ax
+        n = np.broadcast_shapes(np.shape(kx), np.shape(ky), np.shape(bx), np.shape(by))
+        k, b = np.empty(n + (2,)), np.empty(n + (2,))
+        k[..., 0], k[..., 1], b[..., 0], b[..., 1] = kx, ky, bx, by
+        return k.reshape(-1, 2), b.reshape(-1, 2)
 
 
 # ------------------------------------------------------- comparison laws -----
