@@ -25,8 +25,67 @@ from .state import (
 )
 
 
+#: An onset speed past the law's range is brought below it to this share of
+#: itself [-] (Records._onset_in_range: a bisection on the law's own refusal).
+ONSET_CAP_RTOL = 1e-6
+
+
 class Records:
     """Onsets and records (mixed into :class:`engines._contacts.ContactManager`)."""
+
+    def _onset_in_range(self, law, pp, v, m):
+        """law.onset(v, m) for the new contacts of pairs pp (k,) at onset speeds v
+        (k,) [m/s] and effective masses m (k,) [kg]; a contact whose speed takes
+        the msf approach past 2R before maximum compression (the law raises: k_p
+        = sqrt(2 - x/R) of (15) has no real value beyond) gets the constants of
+        the largest speed the law accepts (bisection to ONSET_CAP_RTOL), its
+        k_p is clamped as it deepens (ForceLaw.kp) and it is flagged: its
+        record's outside_validity says so, and stderr once per pair, naming
+        the pair, dt and what to change. A robot's run is not ended by one
+        deep contact. Returns (onset dict, capped (k,) bool, speeds used (k,))."""
+        try:
+            return law.onset(v, m), np.zeros(v.shape, bool), v
+        except ValueError:
+            if law.x_limit is None:
+                raise
+        v = np.array(v, dtype=float)
+        capped = np.zeros(v.shape, bool)
+        for i in range(v.size):
+            try:
+                law.onset(v[i:i + 1], m[i:i + 1])
+                continue
+            except ValueError:
+                pass
+            hi, lo = float(v[i]), 0.5 * float(v[i])
+            while True:  # a speed the law accepts (the approach scales as v^(4/5))
+                try:
+                    law.onset(np.array([lo]), m[i:i + 1])
+                    break
+                except ValueError:
+                    hi, lo = lo, 0.5 * lo
+                    if lo < 1e-12:
+                        raise
+            while hi - lo > ONSET_CAP_RTOL * hi:
+                mid = 0.5 * (lo + hi)
+                try:
+                    law.onset(np.array([mid]), m[i:i + 1])
+                    lo = mid
+                except ValueError:
+                    hi = mid
+            q = int(pp[i])
+            warned = self.__dict__.setdefault("_capped_warned", set())
+            if q not in warned:
+                warned.add(q)
+                warnings.warn(
+                    f"pair {q} ({self.pair_names[q][0]}, {self.pair_names[q][1]}), dt = {self.dt:g} s: a contact "
+                    f"began at {v[i]:.4g} m/s, where the msf approach passes 2R = {law.x_limit:.4g} m before maximum "
+                    f"compression (k_p = sqrt(2 - x/R) of (15) has no real value beyond): its onset constants are "
+                    f"those of {lo:.4g} m/s, the largest the law accepts, k_p is clamped as it deepens, and its "
+                    "record is flagged. If the speed is not physical (a body gaining energy, a coarse dt), take a "
+                    "smaller dt; else give the pair a larger radius, a stiffer material or kp_mode 'hertz' "
+                    "(warned once per pair)", ValidityWarning, stacklevel=4)
+            v[i], capped[i] = lo, True
+        return law.onset(v, m), capped, v
 
     def pop_records(self) -> list[ImpactRecord]:
         """Completed impacts since the last call, and forget them (see ``pending_count``)."""
@@ -57,7 +116,7 @@ class Records:
         if K_floor is None:
             K_floor = self._floor_K[g] = onset_stiffness(law)
         v_used = np.maximum(vn, onset_speed_floor(law, m, a_n, K_floor))
-        o = law.onset(v_used, m)
+        o, capped, v_used = self._onset_in_range(law, pp, v_used, m)
         # store per pair (group arrays created on first use)
         store = self._onset[g]
         size = self._group_size[g]
@@ -81,6 +140,8 @@ class Records:
                      float(SUBSTEPS_PER_TANGENTIAL), self._point, self.in_island, self._island_contact,
                      self.tau_est, self.v_n_in, self.v_n_used, self.m_eff, self.n_in, self.p_in, self.u_in,
                      self.vc_in, self.x_onset, self.turned, self.outside, self._fl, np.empty((2, 3)))
+        if capped.any():  # an onset past the law's range: flagged from the start
+            self.outside[pp[capped]] = True
         for q in pp.tolist():
             self._gain_note[q] = None
         if self._probe is not None:
@@ -119,7 +180,11 @@ class Records:
         outside = []
         x_lim = law.x_limit
         if self.outside[p] or (x_lim is not None and self.x_max[p] >= x_lim):
-            outside.append(f"x_max = {self.x_max[p]:.6g} m reached 2R: k_p = sqrt(2 - x/R) of (15) was clamped")
+            if x_lim is not None and self.x_max[p] >= x_lim:
+                outside.append(f"x_max = {self.x_max[p]:.6g} m reached 2R: k_p = sqrt(2 - x/R) of (15) was clamped")
+            else:  # an onset past the law's range (_onset_in_range)
+                outside.append(f"onset speed {self.v_n_in[p]:.6g} m/s past the law's range (the msf approach would "
+                               f"pass 2R before maximum compression): onset constants of {self.v_n_used[p]:.6g} m/s")
         strain = small_strain_note(x_m, law.geom.R)
         if strain:
             outside.append(strain)

@@ -116,6 +116,11 @@ CANDIDATE_FACTOR = 2.0
 #: warned about, dt_max = tau / HELD_MIN_STEPS (docs/engines.md).
 HELD_MIN_STEPS = 4.0
 
+#: A mesh's slot keeps its hull vertex while the vertex's point in the body's
+#: frame stays within this share of the mesh's size (a vertex's coordinates
+#: are exact; hull vertices lie a few mm apart) [-] (narrow.assign_plane_slots).
+SAME_VERTEX = 1e-6
+
 #: A joint within this of a limit of its range [rad or m] is held there by
 #: pybullet's limit constraint: the contact's inverse inertia treats it as
 #: locked (PybulletAdapter._minv). pybullet lets a loaded joint sit slightly
@@ -199,6 +204,11 @@ class PybulletAdapter(EngineAdapter):
     curvature: {(body unique id, link index): an msf_contact.shapes object}
         whose curvature replaces the shape's own (an ellipsoid made as a mesh:
         ``Ellipsoid(semi_axes)``; the mesh's own is a local fit).
+    mesh_slots: {(body unique id, link index): k} contact points managed for a
+        mesh link on a plane (1-8; default 1: a smooth mesh, its deepest
+        point): a coarse hull whose vertices are contacts, as a box's
+        corners, takes several (engines.pybullet.narrow; MuJoCo's
+        ``MujocoAdapter(mesh_slots=...)``).
     link_shapes: {(body unique id, link index): [LinkShape, ...]} the link's
         collision shapes, given where pybullet cannot report them
         (``getCollisionShapeData`` ends the process on a loadMJCF capsule made
@@ -213,7 +223,7 @@ class PybulletAdapter(EngineAdapter):
     name = "pybullet"
 
     def __init__(self, client: int, pairs: list[PairSpec], compiled: bool = True, *, edge_radii: dict | None = None,
-                 curvature: dict | None = None, link_shapes: dict | None = None):
+                 curvature: dict | None = None, link_shapes: dict | None = None, mesh_slots: dict | None = None):
         if not isinstance(client, int) or not pb.isConnected(client):
             raise ValueError(f"client = {client!r} is not a connected pybullet physics client")
         if not isinstance(compiled, bool):
@@ -231,6 +241,10 @@ class PybulletAdapter(EngineAdapter):
         self.edge_radii = {self._link_key(k, "edge_radii"): float(v) for k, v in (edge_radii or {}).items()}
         self.curvature_shapes = {self._link_key(k, "curvature"): v for k, v in (curvature or {}).items()}
         self._link_shapes = {self._link_key(k, "link_shapes"): list(v) for k, v in (link_shapes or {}).items()}
+        self.mesh_slots = {self._link_key(k, "mesh_slots"): v for k, v in (mesh_slots or {}).items()}
+        for key, k in self.mesh_slots.items():
+            if isinstance(k, bool) or not isinstance(k, (int, np.integer)) or not 1 <= k <= 8:
+                raise ValueError(f"mesh_slots[{key!r}] = {k!r} must be a whole number in [1, 8]")
         self._bodies: list[tuple[tuple[int, int], tuple[int, int]]] = []
         self._shapes: list[tuple[_Shape, _Shape]] = []
         #: the pairs carried by several contact slots (engines.pybullet.narrow); per slot (pair, slot) or (-1, 0)
@@ -532,9 +546,9 @@ class PybulletAdapter(EngineAdapter):
         geoms = []
         for b, s in ((b1, s1), (b2, s2)):
             geoms.append(self.curvature_shapes.get(b) or _narrow.msf_shape(s, self.edge_radii.get(b)))
-        n = _narrow.slots_of(s1.kind, s2.kind)
+        n = _narrow.slots_of(s1.kind, s2.kind, (int(self.mesh_slots.get(b1, 1)), int(self.mesh_slots.get(b2, 1))))
         self._narrow.append(_narrow.NarrowPair(len(self._bodies), b1, b2, s1, s2, geoms[0], geoms[1],
-                                               SlotMatcher(n, s1.extent()), _narrow.pair_method(s1.kind, s2.kind)))
+                                               SlotMatcher(n, s1.extent()), _narrow.pair_method(s1.kind, s2.kind, n)))
         return n
 
     # -- held links (issue 11, item 6) ---------------------------------------
@@ -905,10 +919,18 @@ class PybulletAdapter(EngineAdapter):
             j1, j2 = self._slot[i0]
             poses = (bodies.pose(j1), bodies.pose(j2))
             reach = max(self._closing_bound(i0, poses, grav), _narrow.REACH_FLOOR)
-            x, pts, nrm = _narrow.detect(np_, (poses[0].com, poses[0].rot), (poses[1].com, poses[1].rot), reach,
-                                         self.client)
+            plane = np_.method == "plane"  # every feature, slots by narrow.assign_plane_slots
+            x, pts, nrm = _narrow.detect(np_, (poses[0].com, poses[0].rot), (poses[1].com, poses[1].rot),
+                                         math.inf if plane else reach, self.client)
             local = (pts - poses[0].com) @ poses[0].rot
-            slots = np_.matcher.assign(local, x, required[i0:i0 + np_.n])
+            if plane:
+                same = np_.matcher.tol if np_.shape1.kind != "mesh" else SAME_VERTEX * np_.shape1.extent()
+                slots, changed = _narrow.assign_plane_slots(np_.matcher, local, x, required[i0:i0 + np_.n], reach,
+                                                            same)
+                # a slot on another feature: its a_ext finite difference would compare two material points
+                self._have_last[i0 + np.flatnonzero(changed)] = False
+            else:
+                slots = np_.matcher.assign(local, x, required[i0:i0 + np_.n])
             for q in range(np_.n):
                 self._narrow_found[i0 + q] = None
             for k, q in enumerate(slots):

@@ -14,6 +14,15 @@ Where the points come from, per pair of shapes (body 1 first):
   corners; MuJoCo's narrow phase lists them all, and these are the same
   points. A corner's distance is the sharp box's (what pybullet collides);
   its curvature is the sphere of the edge radius, as in the MuJoCo adapter.
+- **a mesh on a plane whose hull vertices are contacts** (a coarse hull
+  such as ``duck_vhacd.obj``, given several slots:
+  ``PybulletAdapter(mesh_slots={link: 4})``): every hull vertex within the
+  reach, as a box's corners, the deepest first; the curvature at a vertex
+  is the mesh's local fit (engines._narrow.ConvexMesh), as MuJoCo's
+  ``mesh_slots``. With one slot the deepest vertex jumps to the next as the
+  body rolls, and a new vertex already below the plane began as a deep
+  onset: the duck tumbling on steel stopped at x = 2R of its 70 mm law
+  (docs/engines.md).
 - **a sphere on a capsule or a cylinder** (either way round): the sphere
   centre's closest point on the segment or on the solid cylinder, exact.
   pybullet's GJK answer for a sphere on a cylinder's side is off by up to
@@ -144,7 +153,7 @@ def features_on_plane(shape: LinkShape, pos, rot, p0, nz):
     ``nz`` (world): (x (k,) approach [m], the shape's surface points (k, 3)
     [m] in the world). Box: its 8 corners; capsule: the lowest point of each
     end sphere; cylinder: per cap the rim point nearest the plane, or 4 rim
-    points when the cap lies flat (FLAT_CAP)."""
+    points when the cap lies flat (FLAT_CAP); mesh: its hull vertices."""
     s = np.asarray(shape.size, dtype=float)
     if shape.kind == "box":
         signs = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
@@ -162,6 +171,8 @@ def features_on_plane(shape: LinkShape, pos, rot, p0, nz):
             t1, t2 = tangent_basis(a)
             dirs = np.array([t1, t2, -t1, -t2])
         pts = np.concatenate([pos + h * a + s[0] * dirs for h in (-s[1], s[1])])
+    elif shape.kind == "mesh" and shape.vertices is not None:
+        pts = pos + np.asarray(shape.vertices, dtype=float) @ rot.T
     else:
         raise ValueError(f"shape kind {shape.kind!r} has no closed-form features on a plane")
     return -((pts - p0) @ nz), pts
@@ -221,17 +232,79 @@ class NarrowPair:
         return self.matcher.n
 
 
-def pair_method(kind1: str, kind2: str) -> str:
-    """How the points of a pair of shape kinds are found (module docstring)."""
-    if kind2 == "plane" and kind1 in ("box", "capsule", "cylinder"):
+def assign_plane_slots(matcher: SlotMatcher, local, x, busy, reach: float, same: float):
+    """Slots for the features of a shape on a plane (features_on_plane, all
+    of them): (slot per feature (k,) int, -1 left out; changed (n,) bool,
+    the slots that now hold another feature than at the last step).
+
+    A busy slot (in contact, or a timing correction pending) keeps the
+    feature nearest its last point within the matcher's distance, however
+    far it now is: its contact is followed until the manager ends it
+    (listing only the features within the reach left an active contact of
+    the ant's foot without a point, taken as 1 m away: the foot then sank
+    0.1 m into the floor unseen). The other slots take the deepest features
+    within ``reach`` [m], deepest first, a slot keeping its own feature
+    (within ``same`` [m] of its last point in body 1's frame) when that is
+    among them: a free slot held by a feature that lifts away while a deeper
+    one comes (a mesh's hull vertices, a few mm apart) left the deeper one
+    unmanaged until it was 8.8 mm deep (the duck). local (k, 3) [m] in body
+    1's frame, x (k,) [m] the approach, busy (n,) bool."""
+    pts = np.asarray(local, dtype=float).reshape(-1, 3)
+    x = np.asarray(x, dtype=float).reshape(-1)
+    busy = np.asarray(busy, dtype=bool)
+    k, n = pts.shape[0], matcher.n
+    out = np.full(k, -1)
+    taken = np.zeros(n, bool)
+    before = matcher.anchor.copy()
+    known = ~np.isnan(before[:, 0])
+
+    def claim(slots, rows, tol):
+        if not slots.size or not rows.size:
+            return
+        dist = np.linalg.norm(pts[rows][:, None, :] - before[slots][None, :, :], axis=2)
+        for flat in np.argsort(dist, axis=None, kind="stable"):
+            r, c = divmod(int(flat), slots.size)
+            if dist[r, c] > tol:
+                break
+            if out[rows[r]] < 0 and not taken[slots[c]]:
+                out[rows[r]], taken[slots[c]] = slots[c], True
+
+    claim(np.flatnonzero(busy & known), np.arange(k), matcher.tol)
+    free = int(np.count_nonzero(~taken))
+    order = [int(i) for i in np.argsort(-x, kind="stable") if out[i] < 0 and x[i] > -reach][:free]
+    cand = np.array(order, dtype=int)
+    claim(np.flatnonzero(~taken & known), cand, same)
+    open_slots = [s for s in range(n) if not taken[s]]
+    for i in cand:
+        if out[i] < 0 and open_slots:
+            out[i] = open_slots.pop(0)
+            taken[out[i]] = True
+    anchor = np.where(busy[:, None], before, np.nan)
+    for i in np.flatnonzero(out >= 0):
+        anchor[out[i]] = pts[i]
+    moved = np.linalg.norm(np.where(known[:, None] & taken[:, None], anchor - before, 0.0), axis=1)
+    changed = taken & (~known | (~busy & (moved > same)))
+    matcher.anchor = anchor
+    return out, changed
+
+
+def pair_method(kind1: str, kind2: str, slots: int = 1) -> str:
+    """How the points of a pair of shape kinds are found (module docstring);
+    slots: the pair's managed points (a mesh on a plane with more than one:
+    its hull vertices)."""
+    if kind2 == "plane" and (kind1 in ("box", "capsule", "cylinder") or (kind1 == "mesh" and slots > 1)):
         return "plane"
     if {kind1, kind2} in ({"sphere", "capsule"}, {"sphere", "cylinder"}):
         return "sphere"
     return "engine"
 
 
-def slots_of(kind1: str, kind2: str) -> int:
-    return max(NARROW_SLOTS.get(kind1, 1), NARROW_SLOTS.get(kind2, 1) if kind2 != "plane" else 1)
+def slots_of(kind1: str, kind2: str, mesh_slots: tuple[int, int] = (1, 1)) -> int:
+    """Managed points of a pair of shape kinds (NARROW_SLOTS; a mesh: its
+    ``mesh_slots`` entry, body 1's and body 2's)."""
+    k1 = mesh_slots[0] if kind1 == "mesh" else NARROW_SLOTS.get(kind1, 1)
+    k2 = mesh_slots[1] if kind2 == "mesh" else NARROW_SLOTS.get(kind2, 1)
+    return max(k1, k2 if kind2 != "plane" else 1)
 
 
 def detect(np_: NarrowPair, pose1, pose2, reach: float, client: int):
@@ -305,5 +378,5 @@ def smooth_point(geom, shape: LinkShape, frame, point, outward):
     return pos + rot @ q, w
 
 
-__all__ = ["LinkShape", "NarrowPair", "NARROW_KINDS", "NARROW_SLOTS", "detect", "ellipsoid_vertices",
+__all__ = ["LinkShape", "NarrowPair", "NARROW_KINDS", "NARROW_SLOTS", "assign_plane_slots", "detect", "ellipsoid_vertices",
            "features_on_plane", "msf_shape", "pair_method", "slots_of", "sphere_closest"]

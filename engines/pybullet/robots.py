@@ -19,16 +19,32 @@ algorithm, not GJK); with each child's kind and radius among the link's
 visual shapes (sphere, capsule), the support points minus the radius along
 the direction are the sphere's centre or the capsule's segment, fitted to
 PROBE_ATOL.
+
+pybullet's MJCF importer keeps a hinge's ``axis`` as written: its forward
+dynamics moves the link with the joint speed times that vector (an axis
+"-1 1 0" turns the link at sqrt(2) qdot rad/s), while the joint angle turns
+it about the unit axis by q (measured, tests/test_robots_pybullet.py).
+Velocity and position then disagree, so gravity and every contact do work
+the motion does not account for: the ant (ankles "-1 1 0", "1 1 0") resting
+on its feet at 1 ms gained 12 J in 0.4 s, the humanoid (shoulders "2 1 1",
+elbows "0 -1 1", ...) struck the floor with a foot at 15.4 m/s under its
+seeded torques. MuJoCo normalises every axis when it compiles the file, so
+:func:`load_mjcf_with_msf_floor` loads a copy whose joint axes are made unit
+(:func:`unit_joint_axes`), the model MuJoCo compiles.
 """
 
 from __future__ import annotations
 
 import itertools
 import math
+import os
+import tempfile
+import xml.etree.ElementTree as ET
 
 import numpy as np
 import pybullet as pb
 
+from engines._contacts.balance import IslandBalance
 from engines.base import PairSpec
 from engines.pybullet.narrow import LinkShape
 from msf_contact.curvature import tangent_basis
@@ -178,10 +194,72 @@ def place_joints_in_range(client: int, uid: int) -> dict[int, float]:
     return moved
 
 
+#: A joint axis whose length differs from 1 by more than this is made unit
+#: before loadMJCF (unit_joint_axes) [-]: far above the rounding of an axis
+#: written to 17 digits, far below a length that changes the dynamics.
+AXIS_RTOL = 1e-9
+
+
+def unit_joint_axes(path: str) -> str | None:
+    """The MJCF file at ``path`` with every ``<joint axis>`` (also in
+    ``<default>``) scaled to unit length, as text; None if every axis is
+    unit already (to AXIS_RTOL). ValueError naming the joint for a zero axis."""
+    tree = ET.parse(str(path))
+    changed = False
+    for el in tree.getroot().iter("joint"):
+        if "axis" not in el.attrib:
+            continue
+        a = np.array(el.get("axis").split(), dtype=float)
+        n = float(np.linalg.norm(a))
+        if a.shape != (3,) or not n > 0.0:
+            raise ValueError(f"{path}: joint {el.get('name')!r} has axis {el.get('axis')!r}: give a non-zero 3-vector")
+        if abs(n - 1.0) > AXIS_RTOL:
+            el.set("axis", " ".join(repr(float(v)) for v in a / n))
+            changed = True
+    return ET.tostring(tree.getroot(), encoding="unicode") if changed else None
+
+
+def load_mjcf(client: int, path: str) -> list[int]:
+    """``pybullet.loadMJCF`` of the file at ``path`` with its joint axes made
+    unit (module docstring): a copy in a temporary directory beside links to
+    the entries of the file's own directory, so that the relative paths of
+    its assets resolve as from the original; the file itself when every axis
+    is unit. Returns loadMJCF's body unique ids."""
+    text = unit_joint_axes(path)
+    if text is None:
+        return list(pb.loadMJCF(str(path), physicsClientId=client))
+    src = os.path.dirname(os.path.abspath(str(path)))
+    name = os.path.basename(str(path))
+    with tempfile.TemporaryDirectory(prefix="msf_mjcf_") as tmp:
+        for entry in os.listdir(src):
+            if entry != name:
+                os.symlink(os.path.join(src, entry), os.path.join(tmp, entry))
+        copy = os.path.join(tmp, name)
+        with open(copy, "w", encoding="utf-8") as f:
+            f.write(text)
+        return list(pb.loadMJCF(copy, physicsClientId=client))
+
+
+#: The client's error reduction of non-contact constraints that
+#: load_mjcf_with_msf_floor sets (``setPhysicsEngineParameter(erp=...)``) [-]:
+#: none. pybullet pushes a joint that is beyond its limit back by erp times
+#: its penetration per step, a velocity no force accounts for; under MSF
+#: feet (internal approach integrated with the joint held, W = J M^-1 J^T)
+#: that push is work the contacts never see. Measured on the ant standing on
+#: its ankle limits at 10 ms (scripts/pybullet_robots.py ant-on-limits):
+#: pybullet's default, the contacts' internal approach and the engine's
+#: drift apart by up to 8 mm, a foot sinks 0.1 m unseen and the ant is
+#: thrown (+1,000 J); with 0, the drift decays to 0.1 um and the ant rests.
+#: The limit still stops a joint (its velocity into the limit is removed).
+LIMIT_ERP = 0.0
+
+
 def load_mjcf_with_msf_floor(client: int, path: str, pair: ContactPair, *, law: str = "msf",
-                             edge_radius: float = DEFAULT_EDGE_RADIUS, **law_options):
+                             edge_radius: float = DEFAULT_EDGE_RADIUS, limit_erp: float | None = LIMIT_ERP,
+                             **law_options):
     """(robot uids, floor uid, pairs, link_shapes): the model at ``path``
-    loaded into ``client`` by ``loadMJCF``, a floor plane (z = 0) added if
+    loaded into ``client`` by ``loadMJCF`` with its joint axes made unit
+    (:func:`load_mjcf`), a floor plane (z = 0) added if
     the file has none, and the MSF pairs ((uid, link, k), (floor, -1)) with
     laws of ``law`` for ``pair`` (body 1 the robot's material, body 2 the
     floor's), one per robot shape (:func:`probe_link_shapes`), the curvature
@@ -193,8 +271,14 @@ def load_mjcf_with_msf_floor(client: int, path: str, pair: ContactPair, *, law: 
     every joint; the caller sets torques, as MuJoCo's motors do), and the
     joints loadMJCF left outside their range are put inside it
     (:func:`place_joints_in_range`). edge_radius: of box shapes (none in
-    these files)."""
-    uids = pb.loadMJCF(str(path), physicsClientId=client)
+    these files). limit_erp: the client's non-contact error reduction
+    (LIMIT_ERP: none; it also applies to the user's createConstraint
+    constraints; None leaves the client's as it is)."""
+    if limit_erp is not None and not 0.0 <= limit_erp <= 1.0:
+        raise ValueError(f"limit_erp = {limit_erp!r} must be in [0, 1] or None")
+    uids = load_mjcf(client, path)
+    if limit_erp is not None:
+        pb.setPhysicsEngineParameter(erp=float(limit_erp), physicsClientId=client)
     floor, robots = None, []
     for u in uids:
         shapes = pb.getVisualShapeData(u, physicsClientId=client)
@@ -236,8 +320,6 @@ def motor_torque_limits(path: str) -> dict[str, float]:
     ``<default><motor>``, else 1): what MuJoCo's motors apply at full
     control, for driving the same joints in pybullet (loadMJCF imports no
     actuator)."""
-    import xml.etree.ElementTree as ET
-
     root = ET.parse(str(path)).getroot()
     default = root.find("default/motor")
     base = default.get("ctrlrange") if default is not None else None
@@ -275,5 +357,18 @@ def mechanical_energy(client: int, uids) -> float:
     return float(E)
 
 
-__all__ = ["load_mjcf_with_msf_floor", "mechanical_energy", "motor_torque_limits", "place_joints_in_range",
-           "probe_link_shapes"]
+def contact_energy(manager) -> float:
+    """Energy the contacts in progress hold [J], as the islands' energy check
+    counts it (:meth:`engines._contacts.balance.IslandBalance.stored`): per
+    contact the elastic energy of its normal force at its internal approach
+    plus the work done against its tangential force less that force's
+    viscous part. Mechanical energy plus this does not rise on passive
+    bodies. ``ContactManager.stored_energy``'s tangential term k |s|^2 / 2 is
+    not the work done when k grows with the approach (Mindlin's k ~ sqrt(x)):
+    it rises by |s|^2 dk / 2 with no work (measured on the pybullet ant
+    settling on its feet at 1 ms: a rise of 2.9 J against 0.036 J here)."""
+    return IslandBalance.stored(manager, np.arange(len(manager.pairs)))
+
+
+__all__ = ["contact_energy", "load_mjcf", "load_mjcf_with_msf_floor", "mechanical_energy", "motor_torque_limits",
+           "place_joints_in_range", "probe_link_shapes", "unit_joint_axes"]

@@ -276,7 +276,7 @@ def run_pybullet(cell: dict, msf: bool) -> dict:
         adapter = None
         if msf:
             adapter = PybulletAdapter(c, [PairSpec((uid, -1), (plane, -1), law_template(cell))],
-                                      edge_radii={(uid, -1): m["edge_radius"]})
+                                      edge_radii={(uid, -1): m["edge_radius"]}, mesh_slots={(uid, -1): 4})
 
         def height():
             return float(pb.getBasePositionAndOrientation(uid, physicsClientId=c)[0][2])
