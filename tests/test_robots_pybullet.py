@@ -349,3 +349,48 @@ def test_a_contact_past_the_laws_range_is_clamped_and_flagged_not_fatal():
         assert any("past the law's range" in note for note in rec.outside_validity)
     finally:
         pb.disconnect(c)
+
+
+ARM_URDF = """<robot name="arm">
+  <link name="base"/>
+  <link name="tip">
+    <inertial><origin xyz="0.3 0 0"/><mass value="1"/><inertia ixx="1e-4" iyy="1e-4" izz="1e-4" ixy="0" ixz="0" iyz="0"/></inertial>
+    <collision><origin xyz="0.3 0 0"/><geometry><sphere radius="0.02"/></geometry></collision>
+  </link>
+  <joint name="hinge" type="revolute"><parent link="base"/><child link="tip"/><axis xyz="0 0 1"/>
+    <limit lower="-0.5" upper="0.5" effort="0" velocity="100"/></joint>
+</robot>
+"""
+
+
+def test_a_joint_stopped_at_its_limit_does_not_enter_a_ext_as_an_acceleration(tmp_path):
+    """An arm (fixed base, a hinge limited to +-0.5 rad, a rubber sphere 0.3 m
+    out, 25 mm above the floor) swung at 5 rad/s into its limit: pybullet
+    stops the joint in one step, an impulse the finite-difference a_ext would
+    take for an acceleration of 5 x 0.3 / dt = 1,500 m/s^2 (the humanoid's
+    foot: 3,100 m/s^2, then an onset-speed floor of 15.4 m/s past the law's
+    2R). The adapter sees the stop (limit_stops) and restarts the pair's a_ext."""
+    from msf_contact import Curvature, make_law
+    from engines.base import PairSpec
+
+    urdf = tmp_path / "arm.urdf"
+    urdf.write_text(ARM_URDF)
+    c = scenes.new_client(1e-3)
+    try:
+        plane = scenes.add_plate(c)
+        u = pb.loadURDF(str(urdf), [0, 0, 0.045], useFixedBase=True, physicsClientId=c)
+        pb.changeDynamics(u, 0, linearDamping=0, angularDamping=0, physicsClientId=c)
+        pb.setJointMotorControl2(u, 0, pb.VELOCITY_CONTROL, force=0, physicsClientId=c)
+        pb.setPhysicsEngineParameter(erp=0.0, physicsClientId=c)
+        pb.resetJointState(u, 0, 0.4, 5.0, physicsClientId=c)
+        law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(0.02))
+        ad = PybulletAdapter(c, [PairSpec((u, 0), (plane, -1), law)])
+        worst = 0.0
+        for _ in range(40):
+            ad.step()
+            worst = max(worst, float(np.linalg.norm(ad._last_a_ext[0])))
+        assert abs(pb.getJointState(u, 0, physicsClientId=c)[0] - 0.5) < 1e-2  # stopped at the limit
+        assert ad.limit_stops >= 1
+        assert worst < 10.0 * 9.81  # no impulse taken for an acceleration
+    finally:
+        pb.disconnect(c)

@@ -116,6 +116,14 @@ CANDIDATE_FACTOR = 2.0
 #: warned about, dt_max = tau / HELD_MIN_STEPS (docs/engines.md).
 HELD_MIN_STEPS = 4.0
 
+#: A joint that moved into a limit faster than this at the last step start
+#: and is now at the limit was stopped there by pybullet's rigid limit (an
+#: impulse in its multibody's finite-difference a_ext) [rad/s or m/s]: a
+#: joint resting on its limit moves into it at ~0 (no position correction,
+#: robots.LIMIT_ERP); 0.01 rad/s on a 0.3 m leg is a velocity change of
+#: 3 mm/s, g dt / 6 at 2 ms.
+LIMIT_STOP_SPEED = 1e-2
+
 #: A mesh's slot keeps its hull vertex while the vertex's point in the body's
 #: frame stays within this share of the mesh's size (a vertex's coordinates
 #: are exact; hull vertices lie a few mm apart) [-] (narrow.assign_plane_slots).
@@ -327,6 +335,9 @@ class PybulletAdapter(EngineAdapter):
         self._mb_cache: dict = {}  # per step: a multibody's joint state and inverse mass matrix (_multibody)
         self._movable: dict[int, list[int]] = {}  # a multibody's movable joints
         self._limits: dict[int, np.ndarray] = {}  # their (lower, upper) limits [rad or m]
+        self._qd_last: dict[int, np.ndarray] = {}  # a multibody's joint speeds at the last step start (_limits_engaged)
+        #: steps at which a joint was stopped at a limit (its multibody's a_ext restarted, _limits_engaged)
+        self.limit_stops = 0
         #: pairs seen in contact while a motor on one of their links' joint chains acted
         #: (appliedJointMotorTorque != 0; pybullet cannot report the motor settings): pair -> joint
         self._motor_held: dict[int, str] = {}
@@ -785,14 +796,52 @@ class PybulletAdapter(EngineAdapter):
             mb[2] = Minv
         return mb[2]
 
+    def _limits_engaged(self) -> None:
+        """A joint stopped at a limit of its range within the last step was
+        stopped by pybullet's rigid limit constraint: an impulse (a knee of
+        the humanoid stopped from 38 rad/s in one 2 ms step) that the
+        finite-difference a_ext of the multibody's contact points takes for
+        an acceleration (3,100 m/s^2 at a foot, whose contact then began with
+        the onset-speed floor of that acceleration, 15.4 m/s, past the law's
+        2R, while the foot closed at 3.8 m/s). A joint at a limit now that
+        moved into it faster than LIMIT_STOP_SPEED at the last step start and
+        less than half that now was stopped; the pairs on its multibody
+        restart their a_ext (a link's: zero) for this step, as after a jump."""
+        seen = set()
+        for j in self._art_slots:
+            uid = int(self._b_uid[j])
+            if uid in seen:
+                continue
+            seen.add(uid)
+            q, qd, _ = self._multibody(uid)
+            q, qd = np.asarray(q, float), np.asarray(qd, float)
+            last = self._qd_last.get(uid)
+            self._qd_last[uid] = qd
+            if last is None or not q.size:
+                continue
+            lim = self._limits_of(uid)
+            on = lim[:, 0] < lim[:, 1]
+            lower = on & (q <= lim[:, 0] + JOINT_LIMIT_TOL)
+            upper = on & (q >= lim[:, 1] - JOINT_LIMIT_TOL)
+            into_last = np.where(lower, -last, np.where(upper, last, 0.0))
+            into_now = np.where(lower, -qd, np.where(upper, qd, 0.0))
+            if np.any((into_last > LIMIT_STOP_SPEED) & (into_now < 0.5 * into_last)):
+                side = self._b_art[self._slot] & (self._b_uid[self._slot] == uid)
+                self._have_last[side[:, 0] | side[:, 1]] = False
+                self.limit_stops += 1
+
+    def _limits_of(self, uid) -> np.ndarray:
+        """(lower, upper) limits of the multibody's movable joints (m, 2) [rad or m] (cached)."""
+        if uid not in self._limits:
+            c = self.client
+            info = [pb.getJointInfo(uid, j, physicsClientId=c) for j in self._movable[uid]]
+            self._limits[uid] = np.array([[i[8], i[9]] for i in info], float).reshape(-1, 2)
+        return self._limits[uid]
+
     def _held_dofs(self, uid, q) -> np.ndarray:
         """Columns of the mass matrix (a floating base's 6 first) of the movable
         joints at or beyond a limit of their range (JOINT_LIMIT_TOL)."""
-        c = self.client
-        if uid not in self._limits:
-            info = [pb.getJointInfo(uid, j, physicsClientId=c) for j in self._movable[uid]]
-            self._limits[uid] = np.array([[i[8], i[9]] for i in info], float).reshape(-1, 2)
-        lim = self._limits[uid]
+        lim = self._limits_of(uid)
         q = np.asarray(q, float)
         on = (lim[:, 0] < lim[:, 1]) & ((q <= lim[:, 0] + JOINT_LIMIT_TOL) | (q >= lim[:, 1] - JOINT_LIMIT_TOL))
         base = 0 if self._base_fixed(uid) else 6
@@ -887,6 +936,8 @@ class PybulletAdapter(EngineAdapter):
 
     def _kinematics(self, bodies: _Bodies, grav, required):
         """Rows of the pairs done one by one (box faces, links, the narrow pairs)."""
+        if self._art_slots:
+            self._limits_engaged()
         if self._narrow:
             self._narrow_points(bodies, grav, required)
         rows = []
