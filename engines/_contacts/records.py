@@ -45,8 +45,8 @@ class Records:
         deep contact. Returns (onset dict, capped (k,) bool, speeds used (k,))."""
         try:
             return law.onset(v, m), np.zeros(v.shape, bool), v
-        except ValueError:
-            if law.x_limit is None:
+        except ValueError as exc:  # only the refusal at 2R is capped; bad input still raises
+            if law.x_limit is None or "2R" not in str(exc) or not np.all(np.isfinite(v)):
                 raise
         v = np.array(v, dtype=float)
         capped = np.zeros(v.shape, bool)
@@ -57,14 +57,15 @@ class Records:
             except ValueError:
                 pass
             hi, lo = float(v[i]), 0.5 * float(v[i])
-            while True:  # a speed the law accepts (the approach scales as v^(4/5))
+            for _ in range(64):  # a speed the law accepts (the approach scales as v^(4/5))
                 try:
                     law.onset(np.array([lo]), m[i:i + 1])
                     break
                 except ValueError:
                     hi, lo = lo, 0.5 * lo
-                    if lo < 1e-12:
-                        raise
+            else:
+                raise ValueError(f"pair {int(pp[i])}: the law refuses every onset speed down to {lo:.3g} m/s "
+                                 f"(mass {float(m[i]):.4g} kg)")
             while hi - lo > ONSET_CAP_RTOL * hi:
                 mid = 0.5 * (lo + hi)
                 try:
