@@ -3,6 +3,7 @@ benchmark prints:
 
     .venv/bin/python scripts/shape_numbers.py line      # a lying cylinder: two rim points vs the line law
     .venv/bin/python scripts/shape_numbers.py profile   # cProfile of the MSF humanoid (200 steps)
+    .venv/bin/python scripts/shape_numbers.py objects   # the objects' MSF energy gain in MuJoCo against its bound
 
 ``line``: natural rubber on steel, a cylinder r 10 mm, 60 mm long, edge
 radius 1 mm, falling flat at 1 m/s: the reference solver's line law over
@@ -70,6 +71,28 @@ def _mujoco_lying_cylinder(pair, r, h, m, v):
     return float(data.qvel[2]) / v, ad.records[0].tau, sum(rec.F_max for rec in ad.records[:2])
 
 
+def objects() -> None:
+    """experiments/configs/objects.toml's drops, MSF in MuJoCo only: the
+    energy gain of experiments.scenarios.objects.msf_energy against
+    ENERGY_GAIN_RTOL E0, and the islands the contacts' own check flagged."""
+    import tomllib
+    from pathlib import Path
+
+    from engines._contacts.state import ENERGY_GAIN_RTOL
+    from experiments.scenarios.objects import run_cell
+
+    cfg = tomllib.loads((Path(__file__).parents[1] / "experiments" / "configs" / "objects.toml").read_text())
+    for obj in cfg["objects"]["run"]:
+        cell = {"object": obj, "engine": "mujoco", "objects": cfg["objects"], "materials": cfg["materials"],
+                "drop": dict(cfg["drop"], sample=cfg["drop"]["dt"])}
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            (r,) = run_cell(cell)
+        print(f"{obj}: E0 {r['E0']:.4f} J, gain {r['energy_gain']:.3g} J ({100 * r['energy_gain_rel']:.4f} %), "
+              f"bound {ENERGY_GAIN_RTOL * r['E0']:.3g} J, above: {r['energy_gain_above_bound']}, impacts "
+              f"{r['impacts']}, outside {r['outside']}", flush=True)
+
+
 def profile() -> None:
     import cProfile
     import os
@@ -104,6 +127,6 @@ def profile() -> None:
 
 if __name__ == "__main__":
     what = sys.argv[1] if len(sys.argv) > 1 else ""
-    if what not in ("line", "profile"):
-        sys.exit("usage: scripts/shape_numbers.py line|profile")
-    line() if what == "line" else profile()
+    if what not in ("line", "profile", "objects"):
+        sys.exit("usage: scripts/shape_numbers.py line|profile|objects")
+    {"line": line, "profile": profile, "objects": objects}[what]()

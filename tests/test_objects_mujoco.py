@@ -5,6 +5,7 @@ correction, and the objects scenario's plumbing (the drops themselves are
 
 import math
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -119,3 +120,26 @@ def test_objects_scenario_runs_and_reports(tmp_path):
         assert r["energy_gain"] == 0.0
         # free fall under semi-implicit Euler loses exactly m g^2 dt^2 / 2 a step (the duck: 0.1 kg)
         assert math.isclose(r["E_end"], r["E0"] - 20 * 0.5 * 0.1 * 9.81 ** 2 * 1e-3 ** 2, rel_tol=1e-9), r["engine"]
+
+
+def test_msf_object_energy_stays_within_its_named_bound():
+    """issue 13: the objects' MSF energy gains (0.01-0.17 % before) came from
+    the measure: the finished contacts' W_t - Q_t left out (MSF's tangential
+    spring stiffens with the overlap and gives back energy no force worked
+    for) and samples taken while a timing correction was pending.
+    experiments.scenarios.objects.msf_energy counts the one and skips the
+    other; the gain must then stay within the contacts' own bound,
+    ENERGY_GAIN_RTOL E0 (1e-3; measured over 1 s: cube 0.96 uJ, 0.0011 %,
+    duck 2.2 uJ, 0.003 %, against 7.5 and 54 uJ before). Here the cube's first
+    bounces (0.2 s) in MuJoCo."""
+    import tomllib
+
+    from engines._contacts.state import ENERGY_GAIN_RTOL
+    from experiments.scenarios.objects import run_cell
+
+    cfg = tomllib.loads((Path(__file__).parents[1] / "experiments" / "configs" / "objects.toml").read_text())
+    cell = {"object": "cube", "engine": "mujoco", "objects": cfg["objects"], "materials": cfg["materials"],
+            "drop": dict(cfg["drop"], duration=0.2, sample=0.001)}
+    (row,) = run_cell(cell)
+    assert not row["failed"] and row["impacts"] >= 1
+    assert row["energy_gain"] <= ENERGY_GAIN_RTOL * row["E0"] and not row["energy_gain_above_bound"]
