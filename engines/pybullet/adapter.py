@@ -336,8 +336,9 @@ class PybulletAdapter(EngineAdapter):
         self._movable: dict[int, list[int]] = {}  # a multibody's movable joints
         self._limits: dict[int, np.ndarray] = {}  # their (lower, upper) limits [rad or m]
         self._qd_last: dict[int, np.ndarray] = {}  # a multibody's joint speeds at the last step start (_limits_engaged)
-        #: steps at which a joint was stopped at a limit (its multibody's a_ext restarted, _limits_engaged)
+        #: steps at which a joint was stopped at a limit (its multibody's a_ext kept, _limits_engaged)
         self.limit_stops = 0
+        self._stopped = np.zeros(n, bool)  # pairs whose a_ext is last step's this step (_limits_engaged)
         #: pairs seen in contact while a motor on one of their links' joint chains acted
         #: (appliedJointMotorTorque != 0; pybullet cannot report the motor settings): pair -> joint
         self._motor_held: dict[int, str] = {}
@@ -806,7 +807,9 @@ class PybulletAdapter(EngineAdapter):
         2R, while the foot closed at 3.8 m/s). A joint at a limit now that
         moved into it faster than LIMIT_STOP_SPEED at the last step start and
         less than half that now was stopped; the pairs on its multibody
-        restart their a_ext (a link's: zero) for this step, as after a jump."""
+        keep their last step's a_ext for this step (the load the structure put
+        on them; restarting it from zero unloaded resting feet for a step)."""
+        self._stopped[:] = False
         seen = set()
         for j in self._art_slots:
             uid = int(self._b_uid[j])
@@ -827,7 +830,7 @@ class PybulletAdapter(EngineAdapter):
             into_now = np.where(lower, -qd, np.where(upper, qd, 0.0))
             if np.any((into_last > LIMIT_STOP_SPEED) & (into_now < 0.5 * into_last)):
                 side = self._b_art[self._slot] & (self._b_uid[self._slot] == uid)
-                self._have_last[side[:, 0] | side[:, 1]] = False
+                self._stopped[side[:, 0] | side[:, 1]] = True
                 self.limit_stops += 1
 
     def _limits_of(self, uid) -> np.ndarray:
@@ -950,7 +953,9 @@ class PybulletAdapter(EngineAdapter):
             v2 = poses[1].v + np.cross(poses[1].w, point - poses[1].com)
             v_rel = v1 - v2
             v_com_rel = poses[0].v - poses[1].v
-            if self._have_last[i]:
+            if self._stopped[i]:  # a joint stopped at a limit: its impulse is no acceleration (_limits_engaged)
+                a_ext = self._last_a_ext[i].copy()
+            elif self._have_last[i]:
                 a_ext = (v_rel - self._last_v_rel[i] - self._last_dv[i]) / self._dt
             else:
                 a_ext = grav * (self._free(b1) - self._free(b2))
