@@ -90,10 +90,11 @@ class CompiledPath:
                                 status, ended_by, self.turned, fl, ints, *self._scr_rk4)
             if not stopped:
                 break
-            for r in np.flatnonzero(status == K.ST_ENDED):
-                self._end(int(p[r]), y[r], float(t0 + t_loc[r]),
-                          "force-zero" if ended_by[r] == K.END_FORCE else "overlap-zero", n[r])
-                in_c[r] = False
+            ended = np.flatnonzero(status == K.ST_ENDED)
+            for r, pr, tl, eb in zip(ended.tolist(), p[ended].tolist(), t_loc[ended].tolist(),
+                                     ended_by[ended].tolist()):
+                self._end(pr, y[r], t0 + tl, "force-zero" if eb == K.END_FORCE else "overlap-zero", n[r])
+            in_c[ended] = False
             new_all = np.flatnonzero(status == K.ST_ONSET)
             if new_all.size:
                 grp = self._group_of[p[new_all]]

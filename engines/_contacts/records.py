@@ -332,6 +332,9 @@ class Records:
         turned more than ROTATION_PER_STEP_MAX per engine step, at the
         contact's start or after its end (the probe's ``omega1``/``omega2``
         [rad/s] in ``body_in``/``body_out``), else None."""
+        free = self.orientation_free[p]
+        if free[0] and free[1]:  # neither body's orientation matters: nothing to flag
+            return None
         worst = (0.0, 0)
         for key in ("body_in", "body_out"):
             body = rec.inputs.get(key) or {}
