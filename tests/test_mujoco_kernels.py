@@ -62,7 +62,9 @@ def _close(name, got, want, rtol):
 
 
 def _kin(kin) -> dict:
-    return {k: np.array(getattr(kin, k)) for k in KIN_FIELDS} | {"t": kin.t}
+    lever = getattr(kin, "lever", None)  # the moving contact point's terms (None: every point frozen)
+    return {k: np.array(getattr(kin, k)) for k in KIN_FIELDS} | {"t": kin.t,
+                                                                 "lever": None if lever is None else np.array(lever)}
 
 
 def _same_kin(where, got, want, rtol):
@@ -70,6 +72,9 @@ def _same_kin(where, got, want, rtol):
     assert np.array_equal(got["pair"], want["pair"]), f"{where}: candidates {got['pair']} != {want['pair']}"
     for k in KIN_FIELDS[1:]:
         _close(f"{where} kin.{k}", got[k], want[k], rtol)
+    assert (got["lever"] is None) == (want["lever"] is None), f"{where}: moving contact points in one path only"
+    if want["lever"] is not None:
+        _close(f"{where} kin.lever", got["lever"], want["lever"], rtol)
 
 
 class _Replay:
@@ -103,6 +108,7 @@ class Shadow:
         self.steps = 0
         self.candidates = 0  # most candidates in a step
         self.forces = 0  # steps with a force on the free group
+        self.levers = 0  # steps with a moving contact point (compared: kin.lever)
         ad._compute = self._compute
 
     def _compute(self):
@@ -163,6 +169,7 @@ class Shadow:
                 _close(f"{where} slow force", u, v, KERNEL_RTOL)
         self.candidates = max(self.candidates, seen["kin"]["pair"].size)
         self.forces += bool(np.any(q_want != 0.0))
+        self.levers += seen["kin"]["lever"] is not None
 
     def run(self, steps: int) -> None:
         for _ in range(steps):
@@ -280,6 +287,7 @@ def test_oblique_impact_with_spin(angle, spin):
     build = lambda: scenes.ball_on_plate(ball, 2.0, angle, spin, gap=1e-3, dt=1e-4)  # noqa: E731
     shadow, twin = both(build, [PairSpec("ball", "plate", _law(RUBBER, 0.02, STEEL, math.inf))], 300)
     assert len(shadow.ad.records) == 1
+    assert shadow.levers > 0  # the contact's moving point was compared (compiled lever_free against numpy)
 
 
 def test_two_spheres_in_flight_colliding():
