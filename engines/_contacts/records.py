@@ -24,6 +24,12 @@ from .state import (
     onset_stiffness,
 )
 
+#: Pairs whose leaving the small-strain range (x_max/R, 2R) is warned one by
+#: one on stderr; past it one more warning says the rest are only in their
+#: records' outside_validity. Ten lines name a scene's typical culprits; a jet
+#: of deep beads otherwise printed one line per pooled pair (270 in make bench).
+STRAIN_WARN_PAIRS = 10
+
 
 #: An onset speed past the law's range is brought below it to this share of
 #: itself [-] (Records._onset_in_range: a bisection on the law's own refusal).
@@ -190,11 +196,20 @@ class Records:
         if strain:
             outside.append(strain)
         if outside and not self._strain_warned[p]:
-            # the record says it; stderr says it too, once per pair
+            # the record says it; stderr says it too, once per pair, for the first STRAIN_WARN_PAIRS pairs,
+            # then once that more pairs are flagged (a jet of deep beads flagged 270 pairs, one line each)
             self._strain_warned[p] = True
-            warnings.warn(f"pair {p} ({self.pair_names[p][0]}, {self.pair_names[p][1]}), dt = {self.dt:g} s: "
-                          + "; ".join(outside) + " (warned once per pair; every record carries it in outside_validity)",
-                          ValidityWarning, stacklevel=2)
+            n_warned = self.__dict__.get("_strain_warn_count", 0) + 1
+            self._strain_warn_count = n_warned
+            if n_warned <= STRAIN_WARN_PAIRS:
+                warnings.warn(f"pair {p} ({self.pair_names[p][0]}, {self.pair_names[p][1]}), dt = {self.dt:g} s: "
+                              + "; ".join(outside) + " (warned once per pair; every record carries it in "
+                              "outside_validity)", ValidityWarning, stacklevel=2)
+            elif n_warned == STRAIN_WARN_PAIRS + 1:
+                warnings.warn(f"pair {p} ({self.pair_names[p][0]}, {self.pair_names[p][1]}), dt = {self.dt:g} s: "
+                              + "; ".join(outside) + f" -- more than {STRAIN_WARN_PAIRS} pairs have left the "
+                              "small-strain range; the others are not warned one by one: every record carries its "
+                              "note in outside_validity (count them there)", ValidityWarning, stacklevel=2)
         if self._gain_note[p]:
             outside.append(self._gain_note[p])
         gain = self._energy_gain(p, vin, v_out, lu, yl[_WT])
