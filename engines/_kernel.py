@@ -54,13 +54,18 @@ jit_inline = njit(cache=True, _nrt=False, inline="always")
 
 # law codes
 CODE_MSF, CODE_HERTZ, CODE_KK, CODE_HC, CODE_SD = 0, 1, 2, 3, 4
+#: engines._narrow.SideEndLaw: one end's share of the MSF line law (37), F_n = W_end (2 eta x' + 2/3 E' x),
+#: W_end of its class docstring from the LC_S* constants (the side's pose, refreshed every step).
+CODE_SIDE = 5
 #: Onset constants each law's rows carry, in the order of the columns of oc.
 ONSET_KEYS = {CODE_MSF: ("E", "eta_E", "G", "eta_Gy", "eta_Gz"), CODE_HERTZ: (), CODE_KK: (),
-              CODE_HC: ("chi",), CODE_SD: ("k", "c")}
+              CODE_HC: ("chi",), CODE_SD: ("k", "c"), CODE_SIDE: ("E", "eta_E", "G", "eta_Gy", "eta_Gz")}
 NOC = 5
 # law constants
 LC_RA, LC_RB, LC_KHA, LC_KHB, LC_MU, LC_K, LC_A, LC_GM, LC_RM, LC_FZ, LC_KPMODE, LC_SRA, LC_SRB = range(13)
-NLC = 13  # LC_SRA, LC_SRB: sqrt(R_a), sqrt(R_b)
+# CODE_SIDE only: the end's width radius R_w, end radius e, straight length L [m], e (1 - cos tilt) [m], rise (sin)
+LC_SRW, LC_SE, LC_SL, LC_SDROP, LC_SRISE = range(13, 18)
+NLC = 18  # LC_SRA, LC_SRB: sqrt(R_a), sqrt(R_b)
 KP_MSF, KP_SMALL, KP_HERTZ = 0, 1, 2
 
 # layout of y, as engines._contacts
@@ -94,6 +99,24 @@ def _kp(x, R, mode):
 
 
 @jit_inline
+def _side_parts(lc, x):
+    """(w a, b) [m] of a SideEndLaw end at x >= 0 [m] (engines._narrow.SideEndLaw._width_one)."""
+    if x <= 0.0:
+        return 0.0, 0.0
+    e, L, rise = lc[LC_SE], lc[LC_SL], lc[LC_SRISE]
+    a = 2.0 * math.sqrt(max(x * (2.0 * lc[LC_SRW] - x), 0.0))
+    rho0 = math.sqrt(max(x * (2.0 * e - x), 0.0))
+    d, half = x - lc[LC_SDROP], 0.5 * L
+    if rise > 0.0:
+        ell = min(max(d / rise, 0.0), half)
+    elif rise < 0.0:
+        ell = half - min(max(d / rise, 0.0), half)
+    else:
+        ell = half if d > 0.0 else 0.0
+    return (1.0 - ell / L) * a, rho0 + max(rho0, ell)
+
+
+@jit_inline
 def forces(code, lc, oc, p, x, xd, out):
     """F_n after the separation rule, its elastic part F_n(x, 0) [N], the
     tangential stiffnesses k_y, k_z [N/m] and dampings b_y, b_z [N s/m]
@@ -111,6 +134,18 @@ def forces(code, lc, oc, p, x, xd, out):
         F = base * (2.0 * oc[p, 1] * xd + el)
         P_bx = lc[LC_KHA] * x + 2.0 * kpb * (srb * sx)
         P_ax = lc[LC_KHB] * x + 2.0 * kpa * (sra * sx)
+        out[1] = base * el
+        out[2] = oc[p, 2] * P_bx
+        out[3] = oc[p, 2] * P_ax
+        out[4] = oc[p, 3] * P_bx
+        out[5] = oc[p, 4] * P_ax
+    elif code == CODE_SIDE:  # (37) with W = (w a + b)/2; (36) with (P_bx, P_ax) = (k_ha x + b, k_hb x + w a)
+        wa, b = _side_parts(lc, x)
+        el = (2.0 / 3.0) * oc[p, 0] * x
+        base = 0.5 * (wa + b)
+        F = base * (2.0 * oc[p, 1] * xd + el)
+        P_bx = lc[LC_KHA] * x + b
+        P_ax = lc[LC_KHB] * x + wa
         out[1] = base * el
         out[2] = oc[p, 2] * P_bx
         out[3] = oc[p, 2] * P_ax
@@ -153,7 +188,7 @@ def coulomb(mu, Fn, Fa, Fb):
 @jit
 def indicator(code, lc, oc, p, x, xd):
     """The law's separation indicator B(x, x') (force-zero: B < 0 ends the contact)."""
-    if code == CODE_MSF:
+    if code == CODE_MSF or code == CODE_SIDE:
         return 2.0 * oc[p, 1] * xd + (2.0 / 3.0) * oc[p, 0] * x
     if code == CODE_HERTZ:
         return x

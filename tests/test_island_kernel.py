@@ -277,3 +277,43 @@ def test_pile_of_eight_step_by_step():
         with ctx:
             ad.step(120)
     assert calls[0] > 10 and stats["island_rows"] > 50 and stats["records"] > 5, (calls, stats)
+
+
+@pytest.mark.mujoco
+@pytest.mark.parametrize("kind, tilt_deg", [("cylinder", 0.0), ("capsule", 3.0)])
+def test_lying_side_line_law_island(kind, tilt_deg):
+    """A cylinder lying flat and a capsule tilted 3 degrees (r 10 mm,
+    half-length 30 mm, natural rubber on steel, 1 m/s, dt 1 ms, 150 steps:
+    bounces and rest) dropped on a plate: the side's two ends are one island
+    of two engines._narrow.SideEndLaw rows (the line law, its pose refreshed
+    every step: engines._kernel CODE_SIDE); compiled == numpy step by step,
+    records included."""
+    _engine_available("mujoco")
+    from engines.base import PairSpec
+    from engines.mujoco.adapter import MujocoAdapter
+    from test_narrow_mujoco import scene
+
+    rubber = preset("natural-rubber")
+    r, h = 0.01, 0.03
+    m = rubber.density * math.pi * r * r * 2 * h
+    inertia = (m * (3 * r * r + 4 * h * h) / 12, m * (3 * r * r + 4 * h * h) / 12, m * r * r / 2)
+    law = make_law("msf", ContactPair(rubber, STEEL), Curvature.sphere_on_plane(r))
+
+    class _Lying:
+        def __init__(self):
+            model, data = scene(f'<geom name="g" type="{kind}" size="{r} {h}" mass="0"/>', m, inertia,
+                                r + h * math.sin(math.radians(tilt_deg)) + 1e-4, euler=f"0 {90 - tilt_deg} 0")
+            self.adapter = MujocoAdapter(model, data, [PairSpec("g", "plate", law)])
+            self._ctx = contextlib.nullcontext()
+
+    calls = [0]
+    with _count_kernel_calls(calls):
+        fc, rc = _run_scene(_Lying, 150, True)
+    assert calls[0] > 0
+    fn, rn = _run_scene(_Lying, 150, False)
+    assert len(fc) == len(fn)
+    for (pa, a), (pb, b) in zip(fc, fn):
+        assert np.array_equal(pa, pb)
+        assert np.max(np.abs(a - b), initial=0.0) <= ISLAND_RTOL * max(np.max(np.abs(b), initial=0.0), 1e-30)
+    assert len(rc) >= 2 and all(rec.parameters["R_b"] == math.inf for rec in rc)  # the line law's records
+    _same_records(rc, rn)

@@ -383,6 +383,17 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             total += 0.5 * float(np.mean(k)) * float(self.s[p] @ self.s[p])
         return total
 
+    def refresh_law(self, law: ForceLaw) -> None:
+        """The compiled kernel's constants of ``law`` taken again from it: a
+        law whose constants change between steps (engines._narrow.SideEndLaw's
+        pose, set_pose) is refreshed after each change so that the compiled
+        path computes what its numpy methods do. A law no pair has: nothing."""
+        g = id(law)
+        k = self._kidx.get(g) if g in self._groups else None
+        if k is not None:
+            self._kernel_law[g] = kl = kernel_law(law)
+            self._kLC[k] = kl[1]
+
     def set_law(self, pair_index: int, law: ForceLaw) -> None:
         """Give pair ``pair_index`` the law ``law`` from its next onset on (a
         curvature per contact point: an adapter whose narrow phase finds the

@@ -217,7 +217,7 @@ class Records:
             outside.append(gain)
             warnings.warn(gain, ValidityWarning, stacklevel=2)
         kl = self._kernel_law[g]
-        if kl is not None:
+        if kl is not None and kl[0] != K.CODE_SIDE:  # a line contact's area: the numpy path's
             Pc, Pc_F = K.peak_pressures(kl[0], kl[1], self._oc, p, x_m, float(self.x_at_F[p]), float(self.F_max[p]),
                                         self._scr_rk4[0])
         else:

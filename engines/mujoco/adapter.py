@@ -1174,6 +1174,7 @@ class MujocoAdapter(EngineAdapter):
         for i in range(2):
             st["law"][i].set_pose(ends.tilt, float(ends.rise[i]), float(nWn[i, i]), float(nWn[i, 1 - i]),
                                   float(ends.x[1 - i] - ends.x[i]))
+            self.manager.refresh_law(st["law"][i])  # its compiled constants follow the pose
             x = float(ends.x[i])
             per[i] = (x, ends.lowest[i] + 0.5 * x * ends.normal, ends.normal.copy())
         return per
