@@ -13,6 +13,7 @@ import numpy as np
 from msf_contact.laws import ForceLaw, HertzLaw, HuntCrossleyLaw, KuwabaraKonoLaw, MSFLaw, SpringDashpotLaw
 
 from .. import _kernel as K
+from .._narrow import SideEndLaw
 from .state import (
     _P, F_RATIO_FLOOR, MAX_SEGMENTS, NY, ROOT_ITER, ROOT_TOL, SETTLE_AFTER_DURATIONS, SETTLED_FD_REL,
     SETTLED_NEWTON_MAX, SETTLED_SPEED_RATIO, SETTLED_VTOL, _Rows,
@@ -64,8 +65,6 @@ def side_kernel_law(law: ForceLaw):
     current pose (tilt, rise: set_pose; the manager refreshes them every
     step, ContactManager.refresh_law), else None. Its force and shear
     lengths are SideEndLaw.width / shear_lengths (engines._kernel.forces)."""
-    from .._narrow import SideEndLaw
-
     if type(law) is not SideEndLaw:
         return None
     g = law.geom
