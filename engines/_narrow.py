@@ -366,9 +366,11 @@ class SideEndLaw(MSFLaw):
     L^2/12 for the whole). The tilt and rise are the body's at each step
     (:meth:`set_pose`; frozen within a step as the engines' normals are);
     the onset constants are those of the pose at the contact's onset. The
-    numpy path (the compiled kernel has no footprint); :meth:`psi` is the
-    sphere of the side's radius, the bound the manager's onset-speed floor
-    takes."""
+    compiled kernel has it as CODE_SIDE (engines._kernel.forces, with the
+    pose's constants: engines._contacts.compiled.kernel_law, refreshed after
+    each set_pose by ContactManager.refresh_law), equal to these methods
+    (tests/test_island_kernel.py); :meth:`psi` is the sphere of the side's
+    radius, the bound the manager's onset-speed floor takes."""
 
     def __init__(self, template: MSFLaw, radius: float, end_radius: float, length: float, rounded: bool):
         if not isinstance(template, MSFLaw) or template.kp_mode != "msf" or template.omega == "paper":

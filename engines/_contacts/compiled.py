@@ -35,18 +35,22 @@ def kernel_law(law: ForceLaw):
     """(code, constants (NLC,)) of the compiled kernel for this law, or None
     when the kernel does not know it (a class outside the registry, or a
     registry class with a force method overridden): that law runs on the
-    numpy path."""
-    side = side_kernel_law(law)
-    if side is not None:
-        return side
-    base = next((c for c in _KERNEL_CODES if isinstance(law, c)), None)
-    if base is None:
-        return None
-    t = type(law)
-    if any(getattr(t, m, None) is not getattr(base, m, None) for m in _KERNEL_METHODS):
-        return None
-    if law.kp_mode not in _KP_MODES or law.geom.footprint is not None:  # a line contact: numpy path
-        return None
+    numpy path. An engines._narrow.SideEndLaw (a lying side's line law) is
+    CODE_SIDE with the constants of its current pose (tilt, rise: set_pose;
+    its adapter refreshes them every step, ContactManager.refresh_law): its
+    width and shear lengths as SideEndLaw's in engines._kernel.forces."""
+    if type(law) is SideEndLaw:
+        code = K.CODE_SIDE
+    else:
+        base = next((c for c in _KERNEL_CODES if isinstance(law, c)), None)
+        if base is None:
+            return None
+        t = type(law)
+        if any(getattr(t, m, None) is not getattr(base, m, None) for m in _KERNEL_METHODS):
+            return None
+        if law.kp_mode not in _KP_MODES or law.geom.footprint is not None:  # another line contact: numpy path
+            return None
+        code = _KERNEL_CODES[base]
     g = law.geom
     lc = np.zeros(K.NLC)
     lc[K.LC_RA], lc[K.LC_RB], lc[K.LC_KHA], lc[K.LC_KHB] = g.R_a, g.R_b, g.k_ha, g.k_hb
@@ -57,28 +61,11 @@ def kernel_law(law: ForceLaw):
     lc[K.LC_FZ] = 1.0 if law.separation == "force-zero" else 0.0
     lc[K.LC_KPMODE] = _KP_MODES[law.kp_mode]
     lc[K.LC_SRA], lc[K.LC_SRB] = math.sqrt(g.R_a), math.sqrt(g.R_b)
-    return _KERNEL_CODES[base], lc
-
-
-def side_kernel_law(law: ForceLaw):
-    """(CODE_SIDE, constants (NLC,)) of an engines._narrow.SideEndLaw at its
-    current pose (tilt, rise: set_pose; the manager refreshes them every
-    step, ContactManager.refresh_law), else None. Its force and shear
-    lengths are SideEndLaw.width / shear_lengths (engines._kernel.forces)."""
-    if type(law) is not SideEndLaw:
-        return None
-    g = law.geom
-    lc = np.zeros(K.NLC)
-    lc[K.LC_RA], lc[K.LC_RB], lc[K.LC_KHA], lc[K.LC_KHB] = g.R_a, g.R_b, g.k_ha, g.k_hb
-    lc[K.LC_MU] = math.nan if law.mu is None else float(law.mu)
-    lc[K.LC_GM], lc[K.LC_RM] = law.moduli.G, g.R
-    lc[K.LC_FZ] = 1.0 if law.separation == "force-zero" else 0.0
-    lc[K.LC_KPMODE] = _KP_MODES[law.kp_mode]
-    lc[K.LC_SRA], lc[K.LC_SRB] = math.sqrt(g.R_a), math.sqrt(g.R_b)
-    e, c = law.end_radius, math.cos(law.tilt)
-    lc[K.LC_SRW] = (g.R_a - e + e * c) / c if law.rounded else g.R_a
-    lc[K.LC_SE], lc[K.LC_SL], lc[K.LC_SDROP], lc[K.LC_SRISE] = e, law.length, e * (1.0 - c), law.rise
-    return K.CODE_SIDE, lc
+    if code == K.CODE_SIDE:  # SideEndLaw._width_one's constants at the pose
+        e, c = law.end_radius, math.cos(law.tilt)
+        lc[K.LC_SRW] = (g.R_a - e + e * c) / c if law.rounded else g.R_a
+        lc[K.LC_SE], lc[K.LC_SL], lc[K.LC_SDROP], lc[K.LC_SRISE] = e, law.length, e * (1.0 - c), law.rise
+    return code, lc
 
 
 class CompiledPath:
