@@ -146,7 +146,7 @@ def run_demo(out: Path, quiet: bool = False) -> Path:
     cor_table = pivot(rows, "cor_n", 1.0, ".4f", engines)
     report = (
         "# msf-contact demo\n\n"
-        "Regenerate with `make demo` (4-6 s on 2 cores once installed and compiled; 48 s on a fresh clone, install and first compile included). Records, manifests and per-scenario reports "
+        "Regenerate with `make demo` (4-6 s on 2 cores once installed and compiled; 56 s on a fresh clone at cddf3d2, install and first compile included). Records, manifests and per-scenario reports "
         "are in the folders next to this file.\n\n"
         "## Ball on plate: MSF inside the engines against their own contact\n\n"
         "Natural-rubber ball, R = 20 mm, on a steel plate, normal impacts, no gravity. MSF runs inside MuJoCo "
