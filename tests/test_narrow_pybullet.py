@@ -431,3 +431,23 @@ def test_the_duck_mesh_tumbles_on_its_hull_vertices_without_energy_gain():
         assert E[-1] < 0.9 * E[0]  # the impacts dissipate
     finally:
         pb.disconnect(c)
+
+
+@pytest.mark.parametrize("k", [0, 9, 2.5])
+def test_mesh_slots_out_of_range_is_refused_by_name(k):
+    """PybulletAdapter(mesh_slots=) takes a whole number of contact points in
+    [1, 8] per link; anything else is a ValueError naming the link key and the
+    value, before the adapter does any work."""
+    import pybullet as pb
+    import pybullet_data
+
+    c = scenes.new_client(1e-3, gravity=9.81)
+    try:
+        plane = scenes.add_plate(c)
+        u = pb.loadURDF(os.path.join(pybullet_data.getDataPath(), "duck_vhacd.urdf"), [0, 0, 1.0],
+                        physicsClientId=c)
+        law = make_law("msf", ContactPair(preset("ptfe"), STEEL), Curvature.sphere_on_plane(0.002))
+        with pytest.raises(ValueError, match=rf"mesh_slots\[.*\] = {k!r} must be a whole number in \[1, 8\]"):
+            PybulletAdapter(c, [PairSpec((u, -1), (plane, -1), law)], mesh_slots={(u, -1): k})
+    finally:
+        pb.disconnect(physicsClientId=c)
