@@ -49,6 +49,20 @@ def _path(name):
     return os.path.join(pybullet_data.getDataPath(), "mjcf", name)
 
 
+def _load_ant(c):
+    """ant.xml in client c with MSF feet (natural rubber on steel): its body id, the floor's, pairs, shapes."""
+    robots, floor, pairs, shapes = load_mjcf_with_msf_floor(c, _path("ant.xml"),
+                                                            ContactPair(preset("natural-rubber"), preset("steel")))
+    return robots[0], floor, pairs, shapes
+
+
+def _put_down(c, u, floor, height):
+    """Move body u vertically so that its lowest point is ``height`` [m] above the floor."""
+    gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
+    pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
+    pb.resetBasePositionAndOrientation(u, [pos[0], pos[1], pos[2] - gap + height], orn, physicsClientId=c)
+
+
 def test_measured_shapes_give_pybullets_own_distances():
     """Every capsule and sphere the probe measures on the humanoid, placed
     in the world, is as far from a tilted plane as pybullet says (the
@@ -91,9 +105,7 @@ def test_robot_model_runs_under_seeded_torques(name, torque_steps, rest_steps):
                                                                 ContactPair(preset("natural-rubber"), preset("steel")))
         u = robots[0]
         if drop:  # the lowest shape `drop` above the floor
-            gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
-            pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
-            pb.resetBasePositionAndOrientation(u, [pos[0], pos[1], pos[2] - gap + drop], orn, physicsClientId=c)
+            _put_down(c, u, floor, drop)
         limits = motor_torque_limits(_path(name))
         joints = [j for j in range(pb.getNumJoints(u, physicsClientId=c))
                   if pb.getJointInfo(u, j, physicsClientId=c)[2] != pb.JOINT_FIXED]
@@ -196,9 +208,7 @@ def test_an_impulse_on_the_ant_moves_its_points_by_its_inverse_inertia():
     dt = 1e-3
     c = scenes.new_client(dt)
     try:
-        robots, floor, pairs, shapes = load_mjcf_with_msf_floor(c, _path("ant.xml"),
-                                                                ContactPair(preset("natural-rubber"), preset("steel")))
-        u = robots[0]
+        u, floor, pairs, shapes = _load_ant(c)
         for j in range(pb.getNumJoints(u, physicsClientId=c)):
             info = pb.getJointInfo(u, j, physicsClientId=c)
             if info[2] != pb.JOINT_FIXED:
@@ -281,12 +291,8 @@ def test_the_ant_rests_on_its_feet_without_energy_gain():
     dt = DT["ant.xml"]
     c = scenes.new_client(dt, gravity=9.81)
     try:
-        robots, floor, pairs, shapes = load_mjcf_with_msf_floor(c, _path("ant.xml"),
-                                                                ContactPair(preset("natural-rubber"), preset("steel")))
-        u = robots[0]
-        gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
-        pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
-        pb.resetBasePositionAndOrientation(u, [pos[0], pos[1], pos[2] - gap + 5e-4], orn, physicsClientId=c)
+        u, floor, pairs, shapes = _load_ant(c)
+        _put_down(c, u, floor, 5e-4)
         ad = PybulletAdapter(c, pairs, link_shapes=shapes)
         nj = pb.getNumJoints(u, physicsClientId=c)
         mass = np.array([pb.getDynamicsInfo(u, link, physicsClientId=c)[0] for link in range(-1, nj)])
@@ -301,7 +307,7 @@ def test_the_ant_rests_on_its_feet_without_energy_gain():
             wb = np.array([np.array(pb.getMatrixFromQuaternion(o)).reshape(3, 3).T @ np.asarray(a[1])
                            for a, o in vs])
             T = 0.5 * float(mass @ np.sum(v * v, axis=1)) + 0.5 * float(np.sum(inertia * wb * wb))
-            E = mechanical_energy(c, robots) + contact_energy(ad.manager)
+            E = mechanical_energy(c, [u]) + contact_energy(ad.manager)
             return E, T + float(np.sum(ad.manager.W_el[ad.manager.active])), float(mass @ v[:, 2])
 
         E0, _, p0 = state()
@@ -412,16 +418,12 @@ def test_the_ant_on_its_ankle_limits_rests_with_its_feet_where_the_engine_has_th
     internal approach follows the engine's."""
     c = scenes.new_client(DT["ant.xml"], gravity=9.81)
     try:
-        robots, floor, pairs, shapes = load_mjcf_with_msf_floor(c, _path("ant.xml"),
-                                                                ContactPair(preset("natural-rubber"), preset("steel")))
-        u = robots[0]
+        u, floor, pairs, shapes = _load_ant(c)
         for j in range(pb.getNumJoints(u, physicsClientId=c)):
             info = pb.getJointInfo(u, j, physicsClientId=c)
             if b"ankle" in info[1]:
                 pb.resetJointState(u, j, info[8] if info[8] > 0 else info[9], 0.0, physicsClientId=c)
-        gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
-        pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
-        pb.resetBasePositionAndOrientation(u, [pos[0], pos[1], pos[2] - gap + 5e-4], orn, physicsClientId=c)
+        _put_down(c, u, floor, 5e-4)
         ad = PybulletAdapter(c, pairs, link_shapes=shapes)
         m = ad.manager
         drift = []
