@@ -17,8 +17,8 @@ from .. import _island_kernel as IK
 from .. import _kernel as K
 from ..contract import as_array
 from .compiled import _KCST
-from .islands import initial_state, write_back
-from .state import MAX_SEGMENTS, NY, SUBSTEPS_PER_CONTACT, _Rows, _tangent_basis
+from .islands import write_back
+from .state import MAX_SEGMENTS, NY, SUBSTEPS_PER_CONTACT, _Rows, _tangent_basis, initial_state
 
 
 def coupled_rows(keys) -> tuple[np.ndarray, np.ndarray]:

@@ -47,6 +47,7 @@ import numpy as np
 
 from .reference import _Batch, _find_root
 from .state import (
+    initial_state,
     _P, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, MAX_SEGMENTS, NY, SUBSTEPS_PER_CONTACT, _dot, _Rows,
     _tangent_basis,
 )
@@ -339,32 +340,6 @@ def step_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq, 
     else:
         raise RuntimeError(f"more than {MAX_SEGMENTS} contact onsets/separations in one step of {dt!r} s")
     return write_back(mgr, p, n, W, Wc, y, in_c, t0, cp, cq, Wpq, Wcpq)
-
-
-def initial_state(mgr, p, x_eng, n, v, vc, resting) -> np.ndarray:
-    """The state y (k, NY) of island rows p (k,) at the step start: the
-    engine's velocities less the last step's timing corrections (own and the
-    neighbours'), x the manager's for rows in contact (relaxed toward the
-    engine's x_eng for resting rows (k,) bool), the tangential displacement
-    re-projected onto the current tangent plane, the works carried on.
-    Shared by step_island and the compiled path (engines._contacts.island_compiled)."""
-    k = p.size
-    act = mgr.active[p]
-    v = v - mgr.dv_corr[p]
-    vc = vc - mgr.dvc_corr[p]
-    y = np.zeros((k, NY))
-    x0 = np.where(act, mgr.x[p], x_eng)
-    settle = act & resting
-    x0 = np.where(settle, x0 + mgr.settle_rate * (x_eng - x0), x0)
-    y[:, _X] = x0
-    y[:, _V] = v
-    y[:, _VC] = vc
-    s = mgr.s[p]
-    s_t = s - _dot(s, n)[:, None] * n
-    ls, lt = np.linalg.norm(s, axis=1), np.linalg.norm(s_t, axis=1)
-    y[:, _S] = np.where((lt > 0)[:, None], s_t * (ls / np.where(lt > 0, lt, 1.0))[:, None], 0.0)
-    y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT] = mgr.W_el[p], mgr.W_visc[p], mgr.Q_t[p], mgr.W_t[p]
-    return y
 
 
 def write_back(mgr, p, n, W, Wc, y, in_c, t0, cp, cq, Wpq, Wcpq) -> np.ndarray:

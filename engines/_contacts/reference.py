@@ -23,6 +23,7 @@ import numpy as np
 from msf_contact.laws import ForceLaw
 
 from .state import (
+    initial_state,
     _G, _P, _PD, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, L_G0, L_ON, L_W01, L_W11, L_XREF, MAX_SEGMENTS, NY, ROOT_ITER, ROOT_TOL,
     SETTLE_AFTER_DURATIONS, SETTLED_FD_REL, SETTLED_NEWTON_MAX, SETTLED_SPEED_RATIO, SETTLED_VTOL, _dot,
     _msf_inline, _tangent_basis,
@@ -242,23 +243,10 @@ class NumpyPath:
         t1, t2 = _tangent_basis(n)
         batch = _Batch(law, n, t1, t2, W, Wc, a, self._paper[p], L=L)
         act = self.active[p].copy()
-        # the engine's velocities include last step's timing correction: remove it
-        v = v - self.dv_corr[p]
-        vc = vc - self.dvc_corr[p]
-        y = np.zeros((k, NY))
-        # internal x for contacts in progress (relaxed toward the engine's when resting)
-        x0 = np.where(act, self.x[p], x_eng)
+        # the step-start state: timing corrections removed, resting x relaxed, s re-projected
         settle = act & ((t0 - self.t_onset[p]) > SETTLE_AFTER_DURATIONS * self.tau_est[p])
-        x0 = np.where(settle, x0 + self.settle_rate * (x_eng - x0), x0)
-        y[:, _X] = x0
-        y[:, _V] = v
-        y[:, _VC] = vc
-        # tangential displacement: onto the current tangent plane, same length
-        s = self.s[p]
-        s_t = s - _dot(s, n)[:, None] * n
-        ls, lt = np.linalg.norm(s, axis=1), np.linalg.norm(s_t, axis=1)
-        y[:, _S] = np.where((lt > 0)[:, None], s_t * (ls / np.where(lt > 0, lt, 1.0))[:, None], 0.0)
-        y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT] = self.W_el[p], self.W_visc[p], self.Q_t[p], self.W_t[p]
+        y = initial_state(self, p, x_eng, n, v, vc, settle)
+        x0 = y[:, _X]
         if L is not None:
             y[:, _G] = L[:, L_G0:L_G0 + 3]
             # v_rel at the internal overlap's point, not the engine's (state.LEVER_DOC)

@@ -307,3 +307,30 @@ def lever_terms_free(n, r1, Iinv1, w1, r2, Iinv2, w2) -> np.ndarray:
     g0 = 0.5 * np.cross(w1 + w2, n)
     k = n.shape[0]
     return np.concatenate([W01.reshape(k, 9), W11.reshape(k, 9), g0], axis=1)
+
+
+def initial_state(mgr, p, x_eng, n, v, vc, resting) -> np.ndarray:
+    """The state y (k, NY) of island rows p (k,) at the step start: the
+    engine's velocities less the last step's timing corrections (own and the
+    neighbours'), x the manager's for rows in contact (relaxed toward the
+    engine's x_eng for resting rows (k,) bool), the tangential displacement
+    re-projected onto the current tangent plane, the works carried on.
+    Shared by the numpy path (reference.NumpyPath._step_group), step_island
+    and the compiled islands (engines._contacts.island_compiled)."""
+    k = p.size
+    act = mgr.active[p]
+    v = v - mgr.dv_corr[p]
+    vc = vc - mgr.dvc_corr[p]
+    y = np.zeros((k, NY))
+    x0 = np.where(act, mgr.x[p], x_eng)
+    settle = act & resting
+    x0 = np.where(settle, x0 + mgr.settle_rate * (x_eng - x0), x0)
+    y[:, _X] = x0
+    y[:, _V] = v
+    y[:, _VC] = vc
+    s = mgr.s[p]
+    s_t = s - _dot(s, n)[:, None] * n
+    ls, lt = np.linalg.norm(s, axis=1), np.linalg.norm(s_t, axis=1)
+    y[:, _S] = np.where((lt > 0)[:, None], s_t * (ls / np.where(lt > 0, lt, 1.0))[:, None], 0.0)
+    y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT] = mgr.W_el[p], mgr.W_visc[p], mgr.Q_t[p], mgr.W_t[p]
+    return y
