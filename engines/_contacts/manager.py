@@ -130,6 +130,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self.orientation_free = np.zeros((P, 2), bool)
         self._rotation_warned = np.zeros(P, bool)
         self._strain_warned = np.zeros(P, bool)  # x_max/R or 2R note said on stderr once per pair
+        self._capped_warned = np.zeros(P, bool)  # an onset past the law's range said once per pair
         self._init_state(P)
         self.records: list[ImpactRecord] = []
         self._pending: list[list] = []  # [pair, record, spin axis, steps waited]

@@ -80,9 +80,8 @@ class Records:
                 except ValueError:
                     hi = mid
             q = int(pp[i])
-            warned = self.__dict__.setdefault("_capped_warned", set())
-            if q not in warned:
-                warned.add(q)
+            if not self._capped_warned[q]:
+                self._capped_warned[q] = True
                 warnings.warn(
                     f"pair {q} ({self.pair_names[q][0]}, {self.pair_names[q][1]}), dt = {self.dt:g} s: a contact "
                     f"began at {v[i]:.4g} m/s, where the msf approach passes 2R = {law.x_limit:.4g} m before maximum "
@@ -199,8 +198,7 @@ class Records:
             # the record says it; stderr says it too, once per pair, for the first STRAIN_WARN_PAIRS pairs,
             # then once that more pairs are flagged (a jet of deep beads flagged 270 pairs, one line each)
             self._strain_warned[p] = True
-            n_warned = self.__dict__.get("_strain_warn_count", 0) + 1
-            self._strain_warn_count = n_warned
+            n_warned = int(np.count_nonzero(self._strain_warned))
             if n_warned <= STRAIN_WARN_PAIRS:
                 warnings.warn(f"pair {p} ({self.pair_names[p][0]}, {self.pair_names[p][1]}), dt = {self.dt:g} s: "
                               + "; ".join(outside) + " (warned once per pair; every record carries it in "
