@@ -9,7 +9,7 @@ of each variant and their ratio, the base height at the end of the
 torques, the MSF impact records, and the energy over the rest phase
 (kinetic + gravitational, :func:`engines.pybullet.robots.mechanical_energy`,
 plus with MSF the energy held in the contacts,
-:func:`engines.pybullet.robots.contact_energy`; pybullet's own contact's penetration
+``ContactManager.stored_energy``; pybullet's own contact's penetration
 energy is outside its sum): its largest rise above the rest phase's start
 after the first fifth. The MuJoCo variant is :mod:`benchmarks.robots`; ``make bench``
 runs both.
@@ -54,7 +54,7 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None) -
 
     from engines.pybullet import scenes
     from engines.pybullet.adapter import PybulletAdapter
-    from engines.pybullet.robots import contact_energy, load_mjcf_with_msf_floor, mechanical_energy
+    from engines.pybullet.robots import load_mjcf_with_msf_floor, mechanical_energy
     from msf_contact import ContactPair, preset
 
     rest_steps = steps if rest_steps is None else rest_steps
@@ -81,7 +81,7 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None) -
         E = []
         for _ in range(rest_steps):
             step()
-            E.append(mechanical_energy(c, robots) + (contact_energy(adapter.manager) if msf else 0.0))
+            E.append(mechanical_energy(c, robots) + (adapter.manager.stored_energy() if msf else 0.0))
         E = np.array(E)
         first = rest_steps // 5
         out.update(rest_energy_J=[float(E[0]), float(E[-1])],

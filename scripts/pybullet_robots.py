@@ -6,7 +6,7 @@ docs/engines.md quotes (issue 13):
 
 Each run puts the body on a steel floor (natural rubber, gravity 9.81
 m/s^2), no torques, and prints the mechanical energy plus the elastic
-energy held in the contacts (engines.pybullet.robots.contact_energy) at the start and
+energy held in the contacts (ContactManager.stored_energy) at the start and
 the end, and
 its largest rise above its running minimum: what a passive body resting on
 dissipative contacts must not show beyond rounding.
@@ -24,7 +24,7 @@ import pybullet_data
 from engines.base import PairSpec
 from engines.pybullet import scenes
 from engines.pybullet.adapter import PybulletAdapter
-from engines.pybullet.robots import contact_energy, load_mjcf_with_msf_floor, mechanical_energy
+from engines.pybullet.robots import load_mjcf_with_msf_floor, mechanical_energy
 from msf_contact import ContactPair, Curvature, make_law, preset
 
 PAIR = ContactPair(preset("natural-rubber"), preset("steel"))
@@ -34,7 +34,7 @@ def watch(c, ad, uids, seconds, dt) -> str:
     E = []
     for _ in range(int(round(seconds / dt))):
         ad.step()
-        E.append(mechanical_energy(c, uids) + contact_energy(ad.manager))
+        E.append(mechanical_energy(c, uids) + ad.manager.stored_energy())
     E = np.array(E)
     return (f"E + stored {E[0]:.6g} -> {E[-1]:.6g} J, largest rise above its running minimum "
             f"{np.max(E - np.minimum.accumulate(E)):.3g} J")

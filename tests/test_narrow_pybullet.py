@@ -397,8 +397,6 @@ def test_the_duck_mesh_tumbles_on_its_hull_vertices_without_energy_gain():
     record flagged (the full second is experiments/configs/objects.toml)."""
     import pybullet_data
 
-    from engines.pybullet.robots import contact_energy
-
     c = scenes.new_client(1e-3, gravity=9.81)
     try:
         plane = scenes.add_plate(c)
@@ -418,7 +416,7 @@ def test_the_duck_mesh_tumbles_on_its_hull_vertices_without_energy_gain():
             p, q = pb.getBasePositionAndOrientation(u, physicsClientId=c)
             v, w = (np.array(a) for a in pb.getBaseVelocity(u, physicsClientId=c))
             wl = np.array(pb.getMatrixFromQuaternion(q)).reshape(3, 3).T @ w
-            return m * 9.81 * p[2] + 0.5 * m * v @ v + 0.5 * wl @ (I * wl) + contact_energy(ad.manager)
+            return m * 9.81 * p[2] + 0.5 * m * v @ v + 0.5 * wl @ (I * wl) + ad.manager.stored_energy()
 
         E = [energy()]
         for _ in range(250):

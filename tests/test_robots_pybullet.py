@@ -23,7 +23,6 @@ pytestmark = pytest.mark.pybullet
 from engines.pybullet import scenes  # noqa: E402
 from engines.pybullet.adapter import PybulletAdapter  # noqa: E402
 from engines.pybullet.robots import (  # noqa: E402
-    contact_energy,
     load_mjcf,
     load_mjcf_with_msf_floor,
     mechanical_energy,
@@ -270,7 +269,7 @@ def test_every_hinge_turns_its_link_at_its_joint_speed(name):
         pb.disconnect(c)
 
 
-#: Per 10 ms step, the ant's energy at rest (mechanical plus contact_energy)
+#: Per 10 ms step, the ant's energy at rest (mechanical plus ContactManager.stored_energy)
 #: may rise by what the semi-implicit Euler step moves in gravity's potential,
 #: dt/2 |M g . dv_com| (it moves a body by dt v_end: engines._contacts.balance),
 #: plus this share of its kinetic and normal elastic energy [-]: the settled
@@ -299,7 +298,7 @@ def test_the_ant_rests_on_its_feet_without_energy_gain():
         inertia = np.array([pb.getDynamicsInfo(u, link, physicsClientId=c)[2] for link in range(-1, nj)])
 
         def state():
-            """(mechanical energy + contact_energy [J], kinetic + normal elastic [J], M v_com,z [N s])"""
+            """(mechanical energy + stored_energy [J], kinetic + normal elastic [J], M v_com,z [N s])"""
             vs = [(pb.getBaseVelocity(u, physicsClientId=c), pb.getBasePositionAndOrientation(u, physicsClientId=c)[1])]
             vs += [((s[6], s[7]), s[1]) for s in pb.getLinkStates(u, list(range(nj)), computeLinkVelocity=1,
                                                                     physicsClientId=c)]
@@ -307,7 +306,7 @@ def test_the_ant_rests_on_its_feet_without_energy_gain():
             wb = np.array([np.array(pb.getMatrixFromQuaternion(o)).reshape(3, 3).T @ np.asarray(a[1])
                            for a, o in vs])
             T = 0.5 * float(mass @ np.sum(v * v, axis=1)) + 0.5 * float(np.sum(inertia * wb * wb))
-            E = mechanical_energy(c, [u]) + contact_energy(ad.manager)
+            E = mechanical_energy(c, [u]) + ad.manager.stored_energy()
             return E, T + float(np.sum(ad.manager.W_el[ad.manager.active])), float(mass @ v[:, 2])
 
         E0, _, p0 = state()

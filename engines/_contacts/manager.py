@@ -29,12 +29,6 @@ from .state import (
 )
 
 
-#: Gauss-Legendre nodes of :meth:`ContactManager.stored_energy`'s integral of
-#: the elastic force over the approach (x^(3/2) and linear laws: 1e-6 relative
-#: with 8; the msf k_p factor is smooth in x).
-STORED_ENERGY_NODES = 8
-
-
 class ContactManager(CompiledPath, NumpyPath, Records):
     """Per-contact state, sub-cycled integration and impact records for the
     pairs of one adapter (see the module docstring).
@@ -363,26 +357,21 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         return out
 
     def stored_energy(self) -> float:
-        """Elastic energy held in the contacts in progress [J]: per contact the
-        work of the law's elastic normal force F_n(x, 0) from 0 to the internal
-        approach x (Gauss-Legendre, STORED_ENERGY_NODES nodes: exact for the
-        x^(3/2) and linear laws to round-off) plus k |s|^2 / 2 of the tangential
-        spring (the mean of its two axes' stiffness at x). Kinetic plus
-        potential energy plus this is what a contact conserves or dissipates:
-        a body in contact has part of its energy here."""
-        total = 0.0
-        nodes, weights = np.polynomial.legendre.leggauss(STORED_ENERGY_NODES)
-        for p in np.flatnonzero(self.active & (self.x > 0.0)).tolist():
-            g = self._group_of[p]
-            law = self._groups[g]
-            onset = {k: np.full(nodes.size, v[self._pos[p]]) for k, v in self._onset[g].items()}
-            x = float(self.x[p])
-            xi = 0.5 * x * (nodes + 1.0)
-            F = law.normal_force(xi, np.zeros_like(xi), onset)
-            total += 0.5 * x * float(weights @ F)
-            k, _ = law.tangential_stiffness(np.array([x]), {k: v[:1] for k, v in onset.items()})
-            total += 0.5 * float(np.mean(k)) * float(self.s[p] @ self.s[p])
-        return total
+        """Energy held in and exchanged by the pairs' contacts [J], the measure
+        the islands' energy check uses (:mod:`engines._contacts.balance`): for
+        each contact in progress the elastic energy of its normal force at the
+        internal approach, int_0^x F_n(x', 0) dx', plus the work done against
+        its tangential force less that force's viscous part, W_t - Q_t; plus
+        W_t - Q_t of every finished contact (``W_tq_finished``: MSF's
+        tangential stiffness grows with the approach, so a contact exchanges
+        energy between its normal and tangential motion and may end with W_t -
+        Q_t of either sign). Kinetic plus potential energy plus this changes
+        only by the contacts' viscous and slip losses (it falls) and by the work
+        of external forces; a rise is work the integration did not see. Not
+        k |s|^2 / 2 for the tangential spring: that rises by |s|^2 dk / 2 with
+        no work as k grows with the approach (tests/test_stored_energy.py)."""
+        pp = np.arange(len(self.pairs))
+        return IslandBalance.stored(self, pp) + IslandBalance.finished(self, pp)
 
     def refresh_law(self, law: ForceLaw) -> None:
         """The compiled kernel's constants of ``law`` taken again from it: a

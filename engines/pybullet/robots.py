@@ -44,7 +44,6 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pybullet as pb
 
-from engines._contacts.balance import IslandBalance
 from engines.base import PairSpec
 from engines.pybullet.narrow import LinkShape
 from msf_contact.curvature import tangent_basis
@@ -357,18 +356,5 @@ def mechanical_energy(client: int, uids) -> float:
     return float(E)
 
 
-def contact_energy(manager) -> float:
-    """Energy the contacts in progress hold [J], as the islands' energy check
-    counts it (:meth:`engines._contacts.balance.IslandBalance.stored`): per
-    contact the elastic energy of its normal force at its internal approach
-    plus the work done against its tangential force less that force's
-    viscous part. Mechanical energy plus this does not rise on passive
-    bodies. ``ContactManager.stored_energy``'s tangential term k |s|^2 / 2 is
-    not the work done when k grows with the approach (Mindlin's k ~ sqrt(x)):
-    it rises by |s|^2 dk / 2 with no work (measured on the pybullet ant
-    settling on its feet at 1 ms: a rise of 2.9 J against 0.036 J here)."""
-    return IslandBalance.stored(manager, np.arange(len(manager.pairs)))
-
-
-__all__ = ["contact_energy", "load_mjcf", "load_mjcf_with_msf_floor", "mechanical_energy", "motor_torque_limits",
+__all__ = ["load_mjcf", "load_mjcf_with_msf_floor", "mechanical_energy", "motor_torque_limits",
            "place_joints_in_range", "probe_link_shapes", "unit_joint_axes"]

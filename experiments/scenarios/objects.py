@@ -13,9 +13,10 @@ the mesh's local fit; the mesh's hull vertices are contacts, 4 managed, as a
 box's corners: ``MujocoAdapter(mesh_slots=...)``). Recorded every ``sample`` seconds: the centre of
 mass's height and the mechanical energy (kinetic + gravitational, the
 physical velocities: the MSF timing correction's one-step offset taken out,
-``MujocoAdapter.velocity_offset``; with MSF plus the elastic energy held in
-the contacts, ``ContactManager.stored_energy``, and the finished contacts'
-W_t - Q_t, read at steps without a pending timing correction: :func:`msf_energy`);
+``MujocoAdapter.velocity_offset``; with MSF plus ``ContactManager.stored_energy``,
+the elastic energy held in the contacts and W_t - Q_t of every contact,
+finished ones included, read at steps without a pending timing correction:
+:func:`msf_energy`);
 per cell the largest energy gain over any interval (MSF must not create
 energy: above ENERGY_GAIN_RTOL E0, the contacts' own bound, the report marks
 it and a RuntimeWarning says so), the impacts and the records
@@ -224,18 +225,16 @@ def run_mujoco(cell: dict, msf: bool) -> dict:
 def msf_energy(model, data, adapter) -> float:
     """The energy MSF conserves or dissipates in MuJoCo [J]: kinetic (the
     physical velocities, the one-step timing offset taken out) plus
-    gravitational energy, plus the elastic energy held in the contacts in
-    progress, plus W_t - Q_t of the finished contacts (the work against the
-    tangential force less its viscous part: MSF's tangential spring stiffens
-    with the overlap and gives back energy no force worked for,
-    ``ContactManager.W_tq_finished``; left out, a tumbling object read
-    0.07 % gained). Read at steps without a pending timing correction (as the
+    gravitational energy, plus ``ContactManager.stored_energy`` (the island
+    check's measure: the elastic energy held in the contacts in progress and
+    W_t - Q_t of every contact, finished ones included; MSF's tangential
+    spring stiffens with the overlap and gives back energy no force worked
+    for: left out for the finished contacts, a tumbling object read 0.07 %
+    gained). Read at steps without a pending timing correction (as the
     island energy check reads its bodies)."""
     from engines.mujoco.robots import mechanical_energy
 
-    mgr = adapter.manager
-    return (mechanical_energy(model, data, data.qvel - adapter.velocity_offset()) + mgr.stored_energy()
-            + float(mgr.W_tq_finished.sum()))
+    return mechanical_energy(model, data, data.qvel - adapter.velocity_offset()) + adapter.manager.stored_energy()
 
 
 def _pybullet_energy(c: int, uid: int) -> float:
@@ -313,8 +312,7 @@ def run_pybullet(cell: dict, msf: bool) -> dict:
                     adapter.step()
                 if k % every == 0 and (adapter is None or not np.any(adapter.manager.J != 0.0)):
                     t.append(k * d["dt"]), zs.append(height())
-                    E.append(_pybullet_energy(c, uid) + (0.0 if adapter is None else adapter.manager.stored_energy()
-                                                         + float(adapter.manager.W_tq_finished.sum())))
+                    E.append(_pybullet_energy(c, uid) + (0.0 if adapter is None else adapter.manager.stored_energy()))
         wall = (time.perf_counter() - wall) / steps
         out = {"t": t, "z": zs, "E": E, "step_s": wall,
                "warnings": sorted({str(w_.message)[:200] for w_ in caught})[:5]}
