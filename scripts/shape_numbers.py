@@ -1,15 +1,15 @@
 """Numbers docs/engines.md quotes for issue 13's MuJoCo side that no
 benchmark prints:
 
-    .venv/bin/python scripts/shape_numbers.py line      # a lying cylinder: two rim points vs the line law
+    .venv/bin/python scripts/shape_numbers.py line      # a lying cylinder: two rim points vs the line law (both engines)
     .venv/bin/python scripts/shape_numbers.py profile   # cProfile of the MSF humanoid (200 steps)
     .venv/bin/python scripts/shape_numbers.py objects   # the objects' MSF energy gain in MuJoCo against its bound
 
 ``line``: natural rubber on steel, a cylinder r 10 mm, 60 mm long, edge
 radius 1 mm, falling flat at 1 m/s: the reference solver's line law over
 its side (geometry.SideFootprint with the rim's arcs, "rounded"), the same
-cylinder in MuJoCo at dt = 1 ms (its two ends carrying the line law,
-engines._narrow.SideEndLaw), and one of the two rim points alone (the rim
+cylinder in MuJoCo and in pybullet at dt = 1 ms (its two ends carrying the
+line law, engines._narrow.SideEndLaw), and one of the two rim points alone (the rim
 torus at alpha = 0: 1 mm and 10 mm) carrying half the mass, as the
 engines had it before. ``profile``: the 20 most expensive calls
 (cumulative) of 200 steps of humanoid.xml with seeded torques after 20
@@ -40,10 +40,13 @@ def line() -> None:
         rim = make_law("msf", pair, Curvature(rho, r, math.inf, math.inf))
         b = simulate_impact(rim, Body(rubber, rho, m / 2, 0.4 * m / 2 * rho * rho), Body.half_space(steel), v)
         eng = _mujoco_lying_cylinder(pair, r, h, m, v)
+        pyb = _pybullet_lying_cylinder(pair, r, h, rho, m, v)
     print(f"line law over the side: COR {a.cor_n:.5f}, tau {a.tau * 1e3:.4f} ms, x_max {a.x_max * 1e3:.3f} mm, "
           f"F_max {a.F_max:.2f} N")
     print(f"MuJoCo, its ends carrying the line law: COR {eng[0]:.5f}, tau {eng[1] * 1e3:.4f} ms, "
           f"F_max {eng[2]:.2f} N in all")
+    print(f"pybullet, its ends carrying the line law: COR {pyb[0]:.7f} (reference {a.cor_n:.7f}), "
+          f"tau {pyb[1] * 1e3:.5f} ms, F_max {pyb[2]:.2f} N in all")
     print(f"two rim points, m/2 each: COR {b.cor_n:.3f}, tau {b.tau * 1e3:.2f} ms, x_max {b.x_max * 1e3:.2f} mm, "
           f"F_max {2 * b.F_max:.1f} N in all; outside validity: {b.outside_validity[:1]}")
 
@@ -69,6 +72,35 @@ def _mujoco_lying_cylinder(pair, r, h, m, v):
     ad = MujocoAdapter(model, data, [PairSpec("g", "plate", make_law("msf", pair, Curvature.sphere_on_plane(r)))])
     ad.step(100)
     return float(data.qvel[2]) / v, ad.records[0].tau, sum(rec.F_max for rec in ad.records[:2])
+
+
+def _pybullet_lying_cylinder(pair, r, h, rho, m, v):
+    """(COR of the body, tau [s], summed peak force [N]) of the cylinder dropped flat in pybullet."""
+    import math
+
+    import pybullet as pb
+
+    from engines.base import PairSpec
+    from engines.pybullet import PybulletAdapter, scenes
+    from msf_contact import Curvature, make_law
+
+    c = scenes.new_client(1e-3)
+    try:
+        plane = scenes.add_plate(c)
+        sh = pb.createCollisionShape(pb.GEOM_CYLINDER, radius=r, height=2 * h, physicsClientId=c)
+        u = pb.createMultiBody(m, sh, basePosition=[0, 0, r + 1e-4],
+                               baseOrientation=pb.getQuaternionFromEuler([0, math.pi / 2, 0]), physicsClientId=c)
+        I = m * (3 * r * r + 4 * h * h) / 12
+        pb.changeDynamics(u, -1, localInertiaDiagonal=[I, I, m * r * r / 2], physicsClientId=c)
+        scenes._free_dynamics(c, u)
+        pb.resetBaseVelocity(u, [0, 0, -v], [0, 0, 0], physicsClientId=c)
+        ad = PybulletAdapter(c, [PairSpec((u, -1), (plane, -1), make_law("msf", pair, Curvature.sphere_on_plane(r)))],
+                             edge_radii={(u, -1): rho})
+        ad.step(100)
+        vz = pb.getBaseVelocity(u, physicsClientId=c)[0][2]
+        return vz / v, ad.records[0].tau, sum(rec.F_max for rec in ad.records[:2])
+    finally:
+        pb.disconnect(c)
 
 
 def objects() -> None:

@@ -478,9 +478,8 @@ class MujocoAdapter(EngineAdapter):
             if int(k) != k or not 1 <= k <= 8:
                 raise ValueError(f"mesh_slots[{name!r}] = {k!r} must be a whole number in [1, 8]")
         self._narrow_pairs: list = []  # per narrow geom pair: (geom1, geom2, shape1, shape2, SlotMatcher)
-        #: per narrow geom pair of a capsule or cylinder on a plane: its line contact's state
-        #: ({"mode": "line" | "point", "law": engines._narrow.LineLaw | None, "geom": LineGeometry})
-        self._line: dict[int, dict] = {}
+        #: per narrow geom pair of a capsule or cylinder on a plane: its line contact (engines._narrow.SideLine)
+        self._line: dict = {}
         self._pairs = []
         expanded = []
         for i, p in enumerate(pairs):
@@ -680,7 +679,9 @@ class MujocoAdapter(EngineAdapter):
         k = len(self._narrow_pairs)
         self._narrow_pairs.append((g1, g2, shapes[0], shapes[1], SlotMatcher(n_slots, float(m.geom_rbound[g1]))))
         if t1 in ("capsule", "cylinder") and t2 == "plane":  # a side lying on the plane: one line contact
-            self._line[k] = {"mode": "point", "law": None, "geom": None}
+            from engines._narrow import SideLine
+
+            self._line[k] = SideLine(shapes[0], (p.body1, p.body2))
         return [_Pair(first + s, g1, g2, b1, b2, "narrow", float(m.geom_rbound[g1]), fixed1, fixed2, k, s)
                 for s in range(n_slots)]
 
@@ -1116,50 +1117,23 @@ class MujocoAdapter(EngineAdapter):
 
     def _line_mode(self, k: int, busy) -> str:
         """Line or point contacts for narrow geom pair k (a capsule or
-        cylinder on a plane) at the current state: a contact in progress
-        keeps its mode (its law holds at any tilt: above LINE_TILT_MAX an
-        end's line law is its point law, engines._narrow); between contacts,
-        the line below LINE_TILT_MAX. A pair whose law cannot carry a line
-        (not msf with kp_mode 'msf') stays on the points, warned once."""
-        from engines._narrow import LINE_TILT_MAX, SideEndLaw, side_ends
-        from msf_contact.shapes import Cylinder
-
+        cylinder on a plane) at the current state (engines._narrow.SideLine.update)."""
         st = self._line[k]
         d = self.data
         g1, g2, s1, _, match = self._narrow_pairs[k]
         rot2 = d.geom_xmat[g2].reshape(3, 3)
-        st["geom"] = ends = side_ends(s1, d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3), d.geom_xpos[g2],
-                                      rot2[:, 2])
-        if not np.any(busy) and st["law"] is not False:
-            mode = "line" if ends.tilt < LINE_TILT_MAX else "point"
-            if mode != st["mode"]:
-                match.anchor[:] = np.nan  # the slots start afresh in the other mode
-                st["mode"] = mode
-        if st["mode"] == "line" and st["law"] is None:
-            first = next(q.index for q in self._pairs if q.narrow == k)
-            spec = self.pairs[first]
-            try:
-                if isinstance(s1, Cylinder):
-                    args = (s1.radius, s1.edge_radius, 2.0 * (s1.half_length - s1.edge_radius), True)
-                else:
-                    args = (s1.radius, s1.radius, 2.0 * s1.half_length, False)
-                st["law"] = [SideEndLaw(spec.law, *args) for _ in range(2)]
-            except ValueError as exc:
-                st["law"], st["mode"] = False, "point"
-                warnings.warn(f"pair ({spec.body1!r}, {spec.body2!r}): its side lies on the plane (tilt "
-                              f"{math.degrees(ends.tilt):.3g} deg) but {exc}: its end points carry the contact "
-                              "with their point laws instead (the straight side between them carries nothing)",
-                              RuntimeWarning, stacklevel=3)
-        return st["mode"]
+        first = next(q.index for q in self._pairs if q.narrow == k)
+        if st.update(d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3), d.geom_xpos[g2], rot2[:, 2], busy,
+                     self.pairs[first].law):
+            match.anchor[:] = np.nan  # the slots start afresh in the other mode
+        return st.mode
 
     def _line_slots(self, k: int, n_slots: int) -> list:
-        """Slots 0 and 1 of narrow geom pair k as its side's two ends (x,
-        point, normal), each with its share of the line law at the current
-        pose (engines._narrow.SideEndLaw.set_pose, every step: a pose frozen
-        at each contact's onset left a resting cylinder of the objects
-        scenario with a 3.4 mJ gain against 0.36 mJ); the other slots free."""
+        """Slots 0 and 1 of narrow geom pair k as its side's two ends
+        (engines._narrow.SideLine.slots), their onset masses from MuJoCo's
+        Jacobians and mass matrix; the other slots free."""
         st = self._line[k]
-        ends = st["geom"]
+        ends = st.ends
         m, d = self.model, self.data
         g1, g2 = self._narrow_pairs[k][:2]
         b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
@@ -1169,15 +1143,7 @@ class MujocoAdapter(EngineAdapter):
                        @ ends.normal for i in range(2)])
         MJ = np.empty_like(Jn)
         mujoco.mj_solveM(m, d, MJ, Jn)
-        nWn = Jn @ MJ.T
-        per = [None] * n_slots
-        for i in range(2):
-            st["law"][i].set_pose(ends.tilt, float(ends.rise[i]), float(nWn[i, i]), float(nWn[i, 1 - i]),
-                                  float(ends.x[1 - i] - ends.x[i]))
-            self.manager.refresh_law(st["law"][i])  # its compiled constants follow the pose
-            x = float(ends.x[i])
-            per[i] = (x, ends.lowest[i] + 0.5 * x * ends.normal, ends.normal.copy())
-        return per
+        return st.slots(Jn @ MJ.T, n_slots, self.manager.refresh_law)
 
     def _narrow_detection(self, p: _Pair) -> Detection:
         """Detection of narrow pair p's slot from MuJoCo's narrow phase; until
@@ -1213,8 +1179,8 @@ class MujocoAdapter(EngineAdapter):
         g1, g2, s1, s2, _ = self._narrow_pairs[p.narrow]
         spec = self.pairs[p.index]
         line = self._line.get(p.narrow)
-        if line is not None and line["mode"] == "line":
-            self.manager.set_law(p.index, line["law"][p.slot])
+        if line is not None and line.mode == "line":
+            self.manager.set_law(p.index, line.law[p.slot])
             return
         law = contact_law((spec.body1, spec.body2), spec.law, self.laws,
                           s1, (d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3)),

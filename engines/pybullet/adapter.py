@@ -550,7 +550,8 @@ class PybulletAdapter(EngineAdapter):
 
     def _add_narrow(self, i, p: PairSpec, b1, b2, s1: _Shape, s2: _Shape) -> int:
         """Set pair i up for engines.pybullet.narrow; return its number of slots."""
-        from engines._narrow import SlotMatcher
+        from engines._narrow import SideLine, SlotMatcher
+        from msf_contact.shapes import Capsule, Cylinder
 
         if s1.kind == "plane":
             raise ValueError(f"pairs[{i}]: body1 = {b1} is a plane; body1 must be the curved body (the normal points "
@@ -559,8 +560,12 @@ class PybulletAdapter(EngineAdapter):
         for b, s in ((b1, s1), (b2, s2)):
             geoms.append(self.curvature_shapes.get(b) or _narrow.msf_shape(s, self.edge_radii.get(b)))
         n = _narrow.slots_of(s1.kind, s2.kind, (int(self.mesh_slots.get(b1, 1)), int(self.mesh_slots.get(b2, 1))))
+        line = None
+        if s2.kind == "plane" and isinstance(geoms[0], (Capsule, Cylinder)):  # a side lying on it: one line
+            line = SideLine(geoms[0], (self._body_name(b1), self._body_name(b2)))
         self._narrow.append(_narrow.NarrowPair(len(self._bodies), b1, b2, s1, s2, geoms[0], geoms[1],
-                                               SlotMatcher(n, s1.extent()), _narrow.pair_method(s1.kind, s2.kind, n)))
+                                               SlotMatcher(n, s1.extent()), _narrow.pair_method(s1.kind, s2.kind, n),
+                                               line))
         return n
 
     # -- held links (issue 11, item 6) ---------------------------------------
@@ -975,6 +980,8 @@ class PybulletAdapter(EngineAdapter):
             j1, j2 = self._slot[i0]
             poses = (bodies.pose(j1), bodies.pose(j2))
             reach = max(self._closing_bound(i0, poses, grav), _narrow.REACH_FLOOR)
+            if np_.line is not None and self._line_points(np_, poses, required):
+                continue
             plane = np_.method == "plane"  # every feature, slots by narrow.assign_plane_slots
             x, pts, nrm = _narrow.detect(np_, (poses[0].com, poses[0].rot), (poses[1].com, poses[1].rot),
                                          math.inf if plane else reach, self.client)
@@ -993,6 +1000,49 @@ class PybulletAdapter(EngineAdapter):
                 if q >= 0:
                     self._narrow_found[i0 + q] = (float(x[k]), pts[k], nrm[k])
 
+    def _line_points(self, np_: _narrow.NarrowPair, poses, required) -> bool:
+        """A capsule's or cylinder's side on a plane (engines._narrow.SideLine,
+        as the MuJoCo adapter): below LINE_TILT_MAX its slots 0 and 1 are the
+        side's two ends carrying the line law, put into ``_narrow_found``
+        (True); else False (the end points, by narrow.detect). A change of
+        mode restarts the slots' matching and their a_ext."""
+        i0, n = np_.first, np_.n
+        c1, R1 = self._world_shape(np_.shape1, poses[0])
+        c2, R2 = self._world_shape(np_.shape2, poses[1])
+        normal = R2 @ (np.asarray(np_.shape2.size, float) / np.linalg.norm(np_.shape2.size))
+        if np_.line.update(c1, R1, c2, normal, required[i0:i0 + n], self.pairs[i0].law):
+            np_.matcher.anchor[:] = np.nan
+            self._have_last[i0:i0 + n] = False
+        if np_.line.mode != "line":
+            return False
+        ends = np_.line.ends
+        nWn = self._normal_coupling(i0, poses, ends.lowest, ends.normal)
+        self._narrow_found[i0:i0 + n] = np_.line.slots(nWn, n, self.manager.refresh_law)
+        return True
+
+    def _normal_coupling(self, i, poses, points, normal) -> np.ndarray:
+        """n.W_jk.n (k, k) [1/kg] of pair i between its material points
+        ``points`` (k, 3) [m] along ``normal`` (3,): the relative normal speed
+        at point j that a unit impulse along n at point k gives (+ on body 1,
+        - on body 2), through each body's inverse inertia (free: 1/m +
+        (r_j x n).I^-1 (r_k x n); links: J_j M^-1 J_k^T, both links' Jacobians
+        together when they share a multibody)."""
+        pts = np.asarray(points, float).reshape(-1, 3)
+        n = np.asarray(normal, float)
+        out = np.zeros((pts.shape[0], pts.shape[0]))
+        rows: dict[int, np.ndarray] = {}  # a multibody's n.J (k, ndof), both links' (signed) summed
+        for sign, b, pose in ((1.0, self._bodies[i][0], poses[0]), (-1.0, self._bodies[i][1], poses[1])):
+            if self._articulated(b):
+                Jn = np.stack([n @ self._jacobian(b, pose, p) for p in pts])
+                rows[b[0]] = rows.get(b[0], 0.0) + sign * Jn
+            elif not self._fixed(b):
+                info = pb.getDynamicsInfo(b[0], b[1], physicsClientId=self.client)
+                u = np.cross(pts - pose.com, n) @ pose.rot  # principal axes
+                out += 1.0 / info[0] + (u / np.asarray(info[2], float)) @ u.T
+        for uid, Jn in rows.items():
+            out += Jn @ self._minv(uid) @ Jn.T
+        return out
+
     def _narrow_slot(self, i, poses):
         """(x, n, point) of narrow slot i from this step's points; a slot
         without a point is far (x = -1 m, as the MuJoCo adapter). Until the
@@ -1006,6 +1056,9 @@ class PybulletAdapter(EngineAdapter):
         x, point, n = found
         if not self.manager.active[i]:
             np_ = self._narrow[self._narrow_of[i][0]]
+            if np_.line is not None and np_.line.mode == "line":  # its ends' share of the line law
+                self.manager.set_law(i, np_.line.law[self._narrow_of[i][1]])
+                return x, n.copy(), point.copy()
             pose1 = self._world_shape(np_.shape1, poses[0])
             pose2 = self._world_shape(np_.shape2, poses[1])
             self.manager.set_law(i, contact_law(self.pair_names[i], self.pairs[i].law, self.laws, np_.geom1, pose1,

@@ -8,7 +8,11 @@ Where the points come from, per pair of shapes (body 1 first):
   shape's support features in closed form, all of them within the candidate
   reach: a box's 8 corners, a capsule's 2 end spheres, a cylinder's rim
   points (per cap the rim point nearest the plane; 4 points 90 degrees apart
-  when the cap lies flat). pybullet's ``getClosestPoints`` lists only the
+  when the cap lies flat). A capsule's or cylinder's side tilted less than
+  ``engines._narrow.LINE_TILT_MAX`` from the plane between contacts is a
+  line contact instead: its slots 0 and 1 are the side's two ends, each
+  with its share of the line law (``engines._narrow.SideLine`` and
+  ``SideEndLaw``, as MuJoCo's adapter; the adapter's ``_line_points``). pybullet's ``getClosestPoints`` lists only the
   deepest point of such a pair (measured: one corner of a box lying on a
   face, one end of a capsule lying flat), where a box face rests on four
   corners; MuJoCo's narrow phase lists them all, and these are the same
@@ -226,6 +230,8 @@ class NarrowPair:
     geom2: object
     matcher: SlotMatcher
     method: str  # "plane" (features on a plane), "sphere" (a sphere on a capsule/cylinder), "engine"
+    #: a capsule's or cylinder's side on a plane: its line contact (engines._narrow.SideLine), else None
+    line: object = None
 
     @property
     def n(self) -> int:
