@@ -163,6 +163,10 @@ class EpsTable:
         # one spline of the 7 columns (each column its own not-a-knot spline, as 7 splines would
         # be): one evaluation per call instead of seven
         self._f = CubicSpline(self.nodes, np.array(cols).T, axis=0)
+        #: the spline's knots (N,) and coefficients (4, N - 1, 7), contiguous: what the compiled
+        #: onset (msf_contact._onset_kernel) evaluates, as scipy's PPoly does
+        self.knots = np.ascontiguousarray(self._f.x, dtype=float)
+        self.coefficients = np.ascontiguousarray(self._f.c, dtype=float)
 
     def __call__(self, eps) -> dict[str, np.ndarray]:
         eps = np.asarray(eps, dtype=float)

@@ -36,7 +36,7 @@ from typing import ClassVar
 import numpy as np
 from scipy.optimize import brentq
 
-from . import _scaling
+from . import _onset_kernel, _scaling
 from . import closed_forms as cf
 from ._normal import SEPARATIONS, integrate_normal
 from ._validate import check_choice, check_finite, check_positive, check_range, check_tan_delta
@@ -240,6 +240,9 @@ class MSFLaw(ForceLaw):
 
     name = "msf"
     has_kp = True
+    #: onset() of the table's rows in one compiled pass (msf_contact._onset_kernel, bit for bit
+    #: the numpy form); False on a law (or the class): the numpy form, which it is tested against
+    compiled_onset: ClassVar[bool] = True
 
     def __init__(self, pair, curvature, *, omega="self-consistent", kp_mode="msf",
                  separation="force-zero", mu=None, temperature=None, strict=False):
@@ -307,11 +310,14 @@ class MSFLaw(ForceLaw):
         return (not self.pair.frequency_dependent and self.geom.footprint is None
                 and (self.kp_mode != "msf" or self.geom.sphere))
 
+    def _scale_K(self) -> float:
+        """K = 2/3 E' psi_0 [N/m^1.5] of the dimensionless impact (see _scaling)."""
+        kp0 = 1.0 if self.kp_mode == "hertz" else math.sqrt(2.0)
+        return 2.0 / 3.0 * self.moduli.E * kp0 * (math.sqrt(self.geom.R_a) + math.sqrt(self.geom.R_b))
+
     def _scales(self, v, m):
         """x_0 [m], t_0 [s], eps [-] of the dimensionless impact (see _scaling)."""
-        kp0 = 1.0 if self.kp_mode == "hertz" else math.sqrt(2.0)
-        K = 2.0 / 3.0 * self.moduli.E * kp0 * (math.sqrt(self.geom.R_a) + math.sqrt(self.geom.R_b))
-        x0 = (m * v**2 / K) ** 0.4
+        x0 = (m * v**2 / self._scale_K()) ** 0.4
         eps = x0 / (2.0 * self.geom.R) if self.kp_mode == "msf" else np.zeros_like(x0)
         return x0, x0 / v, eps
 
@@ -348,6 +354,21 @@ class MSFLaw(ForceLaw):
         omega = np.where(gam > 0, 3.0 * tg / np.where(gam > 0, gam, 1.0) / t0, math.pi / (tau * t0))
         return omega, x0 * xm
 
+    def _onset_compiled(self, v, m) -> dict | None:
+        """_onset_scaled and _onset_dict for the table's rows in one compiled pass
+        (msf_contact._onset_kernel, bit for bit the numpy form); None when a row is
+        outside the table or G's loss factor exceeds 1 (the numpy path then
+        handles or refuses it)."""
+        x0 = (m * v**2 / self._scale_K()) ** 0.4  # numpy's power, as _scales
+        table = _scaling.eps_table(self.moduli.tan_delta, self.separation)
+        mod, g = self.moduli, self.geom
+        tg_G = mod.G_loss / mod.G if mod.G > 0 else 0.0
+        out = np.empty((_onset_kernel.NKEYS, v.shape[0]))
+        if _onset_kernel.onset_rows(v, m, x0, 2.0 * g.R, mod.tan_delta, table.knots, table.coefficients, mod.E,
+                                    mod.E_loss, mod.G, mod.G_loss, tg_G, g.k_ha, g.k_hb, g.R_a, g.R_b, out):
+            return None
+        return dict(zip(_onset_kernel.KEYS, out))
+
     def onset_one(self, v: float, m: float) -> dict:
         """Onset constants for one contact by direct integration of the
         dimensional equation (no scaling): the slow, general path."""
@@ -368,6 +389,10 @@ class MSFLaw(ForceLaw):
         check_positive("onset normal speed v_n0", v, unit="m/s")
         check_positive("mass", m, unit="kg")
         if self.scalable and self.omega != "paper":
+            if self.compiled_onset and not exact and self.kp_mode == "msf" and isinstance(self.omega, str):
+                out = self._onset_compiled(v, m)
+                if out is not None:
+                    return out
             omega, x_m = self._onset_scaled(v, m, exact)
             return self._onset_dict(omega, self.moduli, v, m, x_m)
         rows = [self.onset_one(float(a), float(b)) for a, b in zip(v, m)]

@@ -10,7 +10,7 @@ from msf_contact import _scaling
 from msf_contact import closed_forms as cf
 from msf_contact.geometry import Curvature
 from msf_contact.laws import LAWS, ForceLaw, HertzLaw, MSFLaw, get_law, make_law
-from msf_contact.materials import ContactPair, Material
+from msf_contact.materials import ContactPair, Material, preset
 
 #: Algebraic identities between two evaluations of the same formula.
 ALG_RTOL = 1e-12
@@ -219,6 +219,47 @@ def test_vectorised_onset_equals_one_by_one():
     for i, vi in enumerate(v):
         oi = law.onset([vi], [MASS])
         assert o["omega_x"][i] == oi["omega_x"][0]
+
+
+@pytest.mark.parametrize("pair, R", [(PAIR, None), (ContactPair(preset("glass"), preset("polyurethane")), 2.5e-4),
+                                     (ContactPair(preset("steel"), preset("steel")), 0.01)])
+def test_compiled_onset_equals_the_numpy_form(pair, R):
+    """MSFLaw.onset's compiled rows (msf_contact._onset_kernel) equal its numpy
+    form (compiled_onset = False) bit for bit, every key, on random batches of
+    speeds and masses across the table (eps from ~1e-6 to deep, near 2R); a
+    batch with a row past the table takes the numpy path (the same
+    constants, or the same refusal past 2R)."""
+    law = MSFLaw(pair, SPHERE if R is None else Curvature.sphere_on_plane(R))
+    numpy_law = MSFLaw(pair, SPHERE if R is None else Curvature.sphere_on_plane(R))
+    numpy_law.compiled_onset = False
+    rng = np.random.default_rng(11)
+    K = law._scale_K()
+    two_R = 2.0 * law.geom.R
+    for n in (1, 2, 7, 40):
+        eps = 10.0 ** rng.uniform(-6.0, math.log10(_scaling.EPS_NODES[-1]), n)  # x_0/2R across the table
+        m = 10.0 ** rng.uniform(-9.0, -3.0, n)
+        v = np.sqrt((eps * two_R) ** 2.5 * K / m)  # x_0 = (m v^2/K)^(2/5) = eps 2R
+        got, want = law.onset(v, m), numpy_law.onset(v, m)
+        assert list(got) == list(want)
+        for key in want:
+            np.testing.assert_array_equal(got[key], want[key], err_msg=key)
+    for deep in (1.2, 3.0):  # past the table: its own roots (1.2), or past 2R (3.0): refused alike
+        v = np.array([1.0, np.sqrt((deep * _scaling.EPS_NODES[-1] * two_R) ** 2.5 * K / MASS)])
+        got, want = (_answer(lw.onset, v, np.full(2, MASS)) for lw in (law, numpy_law))
+        assert type(got) is type(want)
+        if isinstance(want, str):
+            assert got == want and "2R" in want
+        else:
+            for key in want:
+                np.testing.assert_array_equal(got[key], want[key], err_msg=key)
+
+
+def _answer(f, *args):
+    """f(*args), or the text of the ValueError it raises."""
+    try:
+        return f(*args)
+    except ValueError as exc:
+        return str(exc)
 
 
 def test_frequency_dependent_material_uses_the_fixed_point():

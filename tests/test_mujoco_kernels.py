@@ -389,6 +389,36 @@ def test_off_image_is_the_step_trackers_numpy_test():
     assert seen == {True, False}
 
 
+def test_off_image_start_is_off_image_then_the_start_copies():
+    """engines.mujoco._kernels.off_image_start (the step tracker's test and its
+    start-state copies in one pass) gives off_image's answer and ``bad``, and
+    leaves q0 = q_img = qpos and v0 = qvel (what StepTracker._start copied),
+    on states on and off the image."""
+    from engines.mujoco._kernels import off_image, off_image_start
+    from engines.mujoco._stepping import JUMP_VTOL
+
+    rng = np.random.default_rng(8)
+    h = 1e-3
+    answers = set()
+    for trial in range(50):
+        nq, nv = int(rng.integers(1, 40)), int(rng.integers(1, 40))
+        q0, qvel = rng.normal(size=nq), rng.normal(size=nv)
+        img = q0 + h * rng.normal(size=nq)
+        qpos = img.copy()
+        if trial % 2:
+            qpos[int(rng.integers(nq))] += 1e-3
+        bad_want, bad = np.ones(nq, bool), np.zeros(nq, bool)
+        want = off_image(img.copy(), qpos, q0.copy(), qvel, h, JUMP_VTOL, bad_want)
+        q0_k, img_k, v0 = q0.copy(), img.copy(), np.zeros(nv)
+        assert off_image_start(img_k, qpos, q0_k, qvel, v0, h, JUMP_VTOL, bad) == want
+        np.testing.assert_array_equal(bad, bad_want)
+        np.testing.assert_array_equal(q0_k, qpos)
+        np.testing.assert_array_equal(img_k, qpos)
+        np.testing.assert_array_equal(v0, qvel)
+        answers.add(bool(want))
+    assert answers == {True, False}
+
+
 def test_probe_angular_velocity_is_mj_object_velocity():
     """The adapter's body probe reads a body's angular velocity from cvel; it
     is bit for bit what mj_objectVelocity(..., flg_local=0) returns (which it
@@ -429,3 +459,23 @@ def test_add_couples_is_the_numpy_form():
     add_couples(got, xmat, b.astype(np.int64), dof.astype(np.int64), tq)
     assert np.all(np.abs(got - want) <= 4e-16 * (np.abs(want) + np.abs(tq).sum()))
     assert not np.array_equal(got, q0)
+
+
+def test_required_mask_is_required_pairs():
+    """engines.mujoco._kernels.required_mask (the adapter's ``required`` in
+    place) marks exactly the pairs of engines._kernel.required
+    (ContactManager.required_pairs): in contact, or with any component of a
+    timing correction J non-zero."""
+    from engines._kernel import required
+    from engines.mujoco._kernels import required_mask
+
+    rng = np.random.default_rng(3)
+    for _ in range(20):
+        P = int(rng.integers(1, 50))
+        active = rng.random(P) < 0.3
+        J = np.where(rng.random((P, 3)) < 0.2, rng.normal(size=(P, 3)), 0.0)
+        out = rng.random(P) < 0.5  # stale contents are overwritten
+        required_mask(active, J, out)
+        want = np.zeros(P, bool)
+        want[required(active, J)] = True
+        np.testing.assert_array_equal(out, want)

@@ -432,6 +432,15 @@ def after_step(gi, group_of, pair, force, active, settled, t_onset, tau_est, t_n
 
 
 @njit(cache=True, error_model="numpy")
+def required_mask(active, Jst, out):
+    """out (P,) bool = the pairs in contact or with a timing correction to
+    remove (engines._kernel.required, ContactManager.required_pairs, as a
+    mask written in place: the adapter's ``required``)."""
+    for q in range(active.shape[0]):
+        out[q] = active[q] or Jst[q, 0] != 0.0 or Jst[q, 1] != 0.0 or Jst[q, 2] != 0.0
+
+
+@njit(cache=True, error_model="numpy")
 def off_image(q_img, qpos, q0, qvel, h, vtol, bad):
     """Whether any coordinate of qpos is off the step's image q_img (nq,):
     |q_img - qpos| > vtol h (1 + max |qvel|) + 1e-13 (1 + |q0|), the test of
@@ -450,6 +459,23 @@ def off_image(q_img, qpos, q0, qvel, h, vtol, bad):
         b = abs(q_img[i] - qpos[i]) > tq + 1e-13 * (1.0 + abs(q0[i]))
         bad[i] = b
         off |= b
+    return off
+
+
+@njit(cache=True, error_model="numpy")
+def off_image_start(q_img, qpos, q0, qvel, v0, h, vtol, bad):
+    """:func:`off_image` (its answer and ``bad``), and then the next step's
+    start state taken in the same pass: q0 = q_img = qpos (nq,) (q_img is
+    the base the next image is integrated from) and v0 = qvel (nv,), what
+    engines.mujoco._stepping.StepTracker._start copies after the test
+    whatever its answer."""
+    off = off_image(q_img, qpos, q0, qvel, h, vtol, bad)
+    for i in range(qpos.shape[0]):
+        c = qpos[i]
+        q0[i] = c
+        q_img[i] = c
+    for i in range(qvel.shape[0]):
+        v0[i] = qvel[i]
     return off
 
 

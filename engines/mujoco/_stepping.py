@@ -60,7 +60,7 @@ from __future__ import annotations
 import mujoco
 import numpy as np
 
-from engines.mujoco._kernels import off_image
+from engines.mujoco._kernels import off_image_start
 
 #: A new step's state must be the integrator's image of the last start state
 #: to this velocity tolerance [m/s or rad/s per dof], relative to 1 + |qvel|
@@ -81,6 +81,8 @@ RK4_A = ((0.5, 0.0, 0.0), (0.0, 0.5, 0.0), (0.0, 0.0, 1.0))
 #: Below this rotation [rad] dexp^-1's coefficient (1 - (a/2) cot(a/2))/a^2 is
 #: its series 1/12 + a^2/720 (the closed form loses digits to cancellation).
 _DEXPINV_SERIES_BELOW = 1e-3
+#: MuJoCo's RK4 integrator code, read once (an enum's int() per hook call costs microseconds).
+_RK4 = int(mujoco.mjtIntegrator.mjINT_RK4)
 
 
 def dexpinv(theta: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -126,14 +128,19 @@ class StepTracker:
         self._rot = np.array(rot, dtype=int).reshape(-1, 3)
         self._vbar = np.zeros(model.nv)
         self._bad_q = np.zeros(model.nq, bool)  # the coordinates off the step's image (off_image)
+        # _q holds q0 (the base the next image is integrated from: off_image_start wrote both)
+        self._q_is_q0 = False
+        # off_image_start has already taken the start state of the call being classified
+        self._taken = False
 
     def classify(self, d: mujoco.MjData) -> str:
         m = self.model
         t = float(d.time)
         if self.t0 is None:
             return self._start(d, "first")
-        h = float(m.opt.timestep)
-        rk4 = int(m.opt.integrator) == int(mujoco.mjtIntegrator.mjINT_RK4)
+        opt = m.opt
+        h = float(opt.timestep)
+        rk4 = int(opt.integrator) == _RK4
         if rk4 and self.stage < 3 and t == self.t0 + RK4_C[self.stage] * h:
             self.stage += 1
             self.v[self.stage] = d.qvel
@@ -157,8 +164,12 @@ class StepTracker:
 
     def _start(self, d, kind: str) -> str:
         self.t0 = float(d.time)
-        self.q0[:] = d.qpos
-        self.v[0] = d.qvel
+        if self._taken:  # off_image_start copied qpos, qvel in its pass
+            self._taken = False
+        else:
+            self.q0[:] = d.qpos
+            self.v[0] = d.qvel
+            self._q_is_q0 = False
         self.stage = 0
         return kind
 
@@ -169,9 +180,15 @@ class StepTracker:
         if not rk4 and m.nv:
             # semi-implicit: qpos advanced with the new velocity (a qvel written between steps
             # breaks that too); the coordinates off the image in one compiled pass
-            # (engines.mujoco._kernels.off_image: the tolerance below)
+            # (engines.mujoco._kernels.off_image: the tolerance below), which also takes the
+            # new start state (off_image_start: q0, v[0] and _q, the next image's base, = this state)
             bad_q = self._bad_q
-            if not off_image(self._image(d.qvel, h), d.qpos, self.q0, d.qvel, h, JUMP_VTOL, bad_q):
+            if not self._q_is_q0:
+                self._q[:] = self.q0
+            mujoco.mj_integratePos(m, self._q, d.qvel, h)
+            off = off_image_start(self._q, d.qpos, self.q0, d.qvel, self.v[0], h, JUMP_VTOL, bad_q)
+            self._taken = self._q_is_q0 = True
+            if not off:
                 return ""
             return self._jumped_trees(np.unique(self._qtree[bad_q]))
         vmax = float(np.max(np.abs(d.qvel))) if m.nv else 0.0
@@ -207,6 +224,7 @@ class StepTracker:
         mj_integratePos (a rotation of more than pi per step, e.g. a
         spinning bead, is not recovered by differentiating)."""
         self._q[:] = self.q0
+        self._q_is_q0 = False
         mujoco.mj_integratePos(self.model, self._q, vbar, h)
         return self._q
 

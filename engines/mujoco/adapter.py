@@ -604,6 +604,8 @@ class MujocoAdapter(EngineAdapter):
         #: island contacts are checked for an onset found deep (_check_deep_onsets)
         self._link_pairs = np.array([any(not self._free_body[b] and int(model.body_weldid[b]) != 0
                                          for b in (p.body1, p.body2)) for p in self._pairs], dtype=bool)
+        self._required = np.zeros(len(self._pairs), bool)  # _compute_compiled's scratch
+        self._any_link = bool(self._link_pairs.any())  # _check_deep_onsets has nothing to look at without one
         self._rk4_checked = None
         self._warn_rk4_links()
         #: contacts found deep at their onset on a link (flagged; _check_deep_onsets)
@@ -1082,6 +1084,8 @@ class MujocoAdapter(EngineAdapter):
         work its probe does not see), the single contact's COR check too.
         Measured: the MSF ant under RK4 at 10 ms (scripts/ant_integrators.py)
         had an ankle found 26 mm inside the floor at 7 m/s, COR 3.9."""
+        if not self._any_link:
+            return
         mgr = self.manager
         new = np.flatnonzero(self._link_pairs & mgr._island_contact & (mgr.x_onset > 0.0)
                              & (mgr.t_onset >= t0) & (mgr.t_onset < t0 + mgr.dt))
@@ -1270,8 +1274,8 @@ class MujocoAdapter(EngineAdapter):
         K = self._kernels
         m, d, mgr = self.model, self.data, self.manager
         dt = self.timestep
-        required = np.zeros(len(self._pairs), bool)
-        required[mgr.required_pairs] = True  # in contact, or a correction to remove
+        required = self._required  # in contact, or a correction to remove (a mask of required_pairs)
+        K.required_mask(mgr.active, mgr.J, required)
         f = self._fast
         fast = p1 = p2 = None
         if f.index.size:
