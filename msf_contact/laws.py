@@ -225,6 +225,29 @@ class ForceLaw(abc.ABC):
         return np.repeat(k[:, None], 2, axis=1), np.zeros((n, 2))
 
 
+def self_consistent_omega(omega_h: float, tau_of, v: float, m: float) -> float:
+    """The root omega_x [rad/s] of omega_x tau(omega_x) = pi, (46) with (87):
+    brentq on log omega_x (to 1e-13) in a bracket omega_h e^(+-k), k = 1, 2,
+    ... 21, around omega_h = pi / (a contact duration without damping).
+    tau_of(omega) -> the contact duration [s] of the collision (v [m/s],
+    m [kg]) solved with eta'_E = E''/omega (MSFLaw.self_consistent's
+    integration, or engines._narrow.SideEndLaw's compiled one)."""
+
+    def g(log_w):
+        return math.log(math.exp(log_w) * tau_of(math.exp(log_w)) / math.pi)
+
+    lo, hi = math.log(omega_h) - 1.0, math.log(omega_h) + 1.0
+    glo, ghi = g(lo), g(hi)
+    k = 0
+    while glo * ghi > 0 and k < 20:
+        lo, hi = lo - 1.0, hi + 1.0
+        glo, ghi = g(lo), g(hi)
+        k += 1
+    if glo * ghi > 0:
+        raise RuntimeError(f"no self-consistent omega_x found for v = {v!r} m/s, m = {m!r} kg")
+    return math.exp(brentq(g, lo, hi, xtol=1e-13, rtol=1e-13))
+
+
 # ---------------------------------------------------------------- MSF -------
 class MSFLaw(ForceLaw):
     """Method of the Specific Forces, (37)/(43)/(47).
@@ -395,8 +418,16 @@ class MSFLaw(ForceLaw):
                     return out
             omega, x_m = self._onset_scaled(v, m, exact)
             return self._onset_dict(omega, self.moduli, v, m, x_m)
-        rows = [self.onset_one(float(a), float(b)) for a, b in zip(v, m)]
+        one = self.onset_one if exact else self._onset_one_engine
+        rows = [one(float(a), float(b)) for a, b in zip(v, m)]
         return {k: np.concatenate([r[k] for r in rows]) for k in rows[0]}
+
+    def _onset_one_engine(self, v: float, m: float) -> dict:
+        """:meth:`onset_one` on the engines' path (:meth:`onset`): the same
+        here; a subclass with a faster solve of the same equations overrides
+        it (engines._narrow.SideEndLaw: compiled), :meth:`onset_reference`
+        keeps :meth:`onset_one`."""
+        return self.onset_one(v, m)
 
     def onset(self, v_n0, mass):
         """Onset constants (n,) arrays: omega_x, omega_y, omega_z [rad/s], E, G [Pa],
@@ -433,21 +464,7 @@ class MSFLaw(ForceLaw):
             omega_h = math.pi / self.solve_normal(v, m, {"E": np.array([self.moduli.E]),
                                                          "eta_E": np.zeros(1)}).tau
 
-        def g(log_w):
-            sol, _ = self._solve_with_omega(math.exp(log_w), v, m)
-            return math.log(math.exp(log_w) * sol.tau / math.pi)
-
-        lo, hi = math.log(omega_h) - 1.0, math.log(omega_h) + 1.0
-        glo, ghi = g(lo), g(hi)
-        k = 0
-        while glo * ghi > 0 and k < 20:
-            lo, hi = lo - 1.0, hi + 1.0
-            glo, ghi = g(lo), g(hi)
-            k += 1
-        if glo * ghi > 0:
-            raise RuntimeError(f"no self-consistent omega_x found for v = {v!r} m/s, m = {m!r} kg")
-        log_w = brentq(g, lo, hi, xtol=1e-13, rtol=1e-13)
-        omega = math.exp(log_w)
+        omega = self_consistent_omega(omega_h, lambda w: self._solve_with_omega(w, v, m)[0].tau, v, m)
         sol, mod = self._solve_with_omega(omega, v, m)
         return omega, sol, mod
 

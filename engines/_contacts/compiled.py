@@ -62,9 +62,7 @@ def kernel_law(law: ForceLaw):
     lc[K.LC_KPMODE] = _KP_MODES[law.kp_mode]
     lc[K.LC_SRA], lc[K.LC_SRB] = math.sqrt(g.R_a), math.sqrt(g.R_b)
     if code == K.CODE_SIDE:  # SideEndLaw._width_one's constants at the pose
-        e, c = law.end_radius, math.cos(law.tilt)
-        lc[K.LC_SRW] = (g.R_a - e + e * c) / c if law.rounded else g.R_a
-        lc[K.LC_SE], lc[K.LC_SL], lc[K.LC_SDROP], lc[K.LC_SRISE] = e, law.length, e * (1.0 - c), law.rise
+        law.fill_kernel_constants(lc)
     return code, lc
 
 
