@@ -914,8 +914,9 @@ def finale(pairs, n, W, Wc, settled, in_c, y, dt, timing, kg, LC, active, x_stat
     """Write back the rows' state (ContactManager._step_group's end): the
     timing correction J = int (dt/2 - t) f dt / dt (0 for settled rows),
     the step's impulse P + J - J_previous into impulse (k, 3) [N s], and the
-    angular impulse of the moving contact point n x PD / 2 into couple (k, 3)
-    [N m s] (LEVER_DOC)."""
+    angular impulse of the moving contact point n x PD / 2 into the pairs'
+    couple (P, 3) [N m s] (LEVER_DOC; ContactManager.couple, written per pair
+    like the other state)."""
     for r in range(pairs.shape[0]):
         p = pairs[r]
         lc = LC[kg[r]]
@@ -942,9 +943,9 @@ def finale(pairs, n, W, Wc, settled, in_c, y, dt, timing, kg, LC, active, x_stat
         impulse[r, 1] = yr[P + 1] + J1 - Jst[p, 1]
         impulse[r, 2] = yr[P + 2] + J2 - Jst[p, 2]
         nr = n[r]
-        couple[r, 0] = 0.5 * (nr[1] * yr[PD + 2] - nr[2] * yr[PD + 1])
-        couple[r, 1] = 0.5 * (nr[2] * yr[PD] - nr[0] * yr[PD + 2])
-        couple[r, 2] = 0.5 * (nr[0] * yr[PD + 1] - nr[1] * yr[PD])
+        couple[p, 0] = 0.5 * (nr[1] * yr[PD + 2] - nr[2] * yr[PD + 1])
+        couple[p, 1] = 0.5 * (nr[2] * yr[PD] - nr[0] * yr[PD + 2])
+        couple[p, 2] = 0.5 * (nr[0] * yr[PD + 1] - nr[1] * yr[PD])
         Jst[p, 0], Jst[p, 1], Jst[p, 2] = J0, J1, J2
         for i in range(3):
             dv_corr[p, i] = W[r, i, 0] * J0 + W[r, i, 1] * J1 + W[r, i, 2] * J2

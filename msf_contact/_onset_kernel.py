@@ -17,6 +17,9 @@ order of operations:
 - the shear lengths (36) at x_max with the msf k_p of (15), omega_y, omega_z
   of (84)/(86) and the loss moduli over them.
 
+:func:`stiffness_rows` is MSFLaw.tangential_stiffness on the same terms
+(the engines call it at every onset).
+
 x_0 = (m V^2/K)^(2/5) itself is computed by the caller with numpy (its
 ``power`` is not libm's ``pow`` on every CPU; the two differ by an ulp):
 with that, every other operation is a correctly rounded +, -, *, / or sqrt,
@@ -54,6 +57,32 @@ def _poly(c, i, col, s):
     return res
 
 
+@njit(cache=True, error_model="numpy", inline="always")
+def _shear(x_in, R_a, R_b, k_ha, k_hb):
+    """(36) at x_in [m] with the msf k_p of (15) clamped below x/R = 2, as
+    MSFLaw.shear_lengths and geometry.kp_clamped compute it: (P_bx, P_ax) [m]
+    (np.maximum's and np.minimum's NaN rules kept; np.maximum(-0.0, 0) is 0.0)."""
+    x = x_in if (x_in > 0.0 or x_in != x_in) else 0.0  # np.maximum(x, 0.0): -0.0 gives 0.0 there too
+    rb, ra = x / R_b, x / R_a
+    cap = 2.0 - 1e-12
+    kpb = math.sqrt(2.0 - (rb if (rb <= cap or rb != rb) else cap))  # np.minimum(ratio, cap)
+    kpa = math.sqrt(2.0 - (ra if (ra <= cap or ra != ra) else cap))
+    return k_ha * x + 2.0 * kpb * math.sqrt(R_b * x), k_hb * x + 2.0 * kpa * math.sqrt(R_a * x)
+
+
+@njit(cache=True, error_model="numpy")
+def stiffness_rows(x, G, eta_y, eta_z, R_a, R_b, k_ha, k_hb, k, b):
+    """MSFLaw.tangential_stiffness (msf k_p on a sphere) per row: k = (G P_bx,
+    G P_ax) [N/m], b = (eta_Gy P_bx, eta_Gz P_ax) [N s/m] into k, b (n, 2)
+    from x, G, eta_y, eta_z (n,)."""
+    for r in range(x.shape[0]):
+        P_bx, P_ax = _shear(x[r], R_a, R_b, k_ha, k_hb)
+        k[r, 0] = G[r] * P_bx
+        k[r, 1] = G[r] * P_ax
+        b[r, 0] = eta_y[r] * P_bx
+        b[r, 1] = eta_z[r] * P_ax
+
+
 @njit(cache=True, error_model="numpy")
 def onset_rows(v, m, x0, two_R, tg, nodes, c, E, E_loss, G, G_loss, tg_G, k_ha, k_hb, R_a, R_b, out):
     """The onset constants of rows (n,) into out (NKEYS, n) (module docstring).
@@ -88,12 +117,7 @@ def onset_rows(v, m, x0, two_R, tg, nodes, c, E, E_loss, G, G_loss, tg_G, k_ha, 
         else:
             w_x = math.pi / (_poly(c, i, _TAU, s) * t0)
         x_m = x0r * _poly(c, i, _XMAX, s)
-        # (36) at x_max, k_p of (15) clamped below x/R = 2 (geometry.kp_clamped)
-        x = x_m if x_m > 0.0 else 0.0  # np.maximum(x_m, 0.0): x_m is finite here (eps was in the table)
-        kpb = math.sqrt(2.0 - min(x / R_b, 2.0 - 1e-12))
-        kpa = math.sqrt(2.0 - min(x / R_a, 2.0 - 1e-12))
-        P_bx = k_ha * x + 2.0 * kpb * math.sqrt(R_b * x)
-        P_ax = k_hb * x + 2.0 * kpa * math.sqrt(R_a * x)
+        P_bx, P_ax = _shear(x_m, R_a, R_b, k_ha, k_hb)  # (36) at x_max
         # (84)/(86): omega^2 = C/m / 2 (1 + sqrt(1 - tg^2))
         w_y = math.sqrt(G * P_bx / m[r] / 2.0 * (1.0 + q))
         w_z = math.sqrt(G * P_ax / m[r] / 2.0 * (1.0 + q))

@@ -492,6 +492,15 @@ class MSFLaw(ForceLaw):
         return P_bx, P_ax
 
     def tangential_stiffness(self, x, onset):
+        if self.compiled_onset and self.kp_mode == "msf" and self.geom.footprint is None:
+            # rows of one length: compiled (msf_contact._onset_kernel.stiffness_rows, bit for bit)
+            cols = (x, onset["G"], onset["eta_Gy"], onset["eta_Gz"])
+            if all(type(c) is np.ndarray and c.dtype == np.float64 and c.ndim == 1 for c in cols) and \
+                    x.shape[0] == cols[1].shape[0] == cols[2].shape[0] == cols[3].shape[0]:
+                g = self.geom
+                k, b = np.empty((x.shape[0], 2)), np.empty((x.shape[0], 2))
+                _onset_kernel.stiffness_rows(*cols, g.R_a, g.R_b, g.k_ha, g.k_hb, k, b)
+                return k, b
         P_bx, P_ax = self.shear_lengths(x)
         G = np.asarray(onset["G"], dtype=float)
         # the two columns assigned into (n, 2) arrays: np.stack's values, at a third of its cost for a few rows

@@ -254,6 +254,25 @@ def test_compiled_onset_equals_the_numpy_form(pair, R):
                 np.testing.assert_array_equal(got[key], want[key], err_msg=key)
 
 
+def test_compiled_tangential_stiffness_equals_the_numpy_form():
+    """MSFLaw.tangential_stiffness's compiled rows (msf_contact._onset_kernel.
+    stiffness_rows) equal its numpy form bit for bit, k and b, at overlaps from
+    -R to past 2R (clamped k_p), 0, -0.0 and NaN, with onset constants of
+    rows; scalars in the onset take the numpy form."""
+    law = MSFLaw(PAIR, SPHERE)
+    numpy_law = MSFLaw(PAIR, SPHERE)
+    numpy_law.compiled_onset = False
+    rng = np.random.default_rng(4)
+    x = np.concatenate([rng.uniform(-R, 2.5 * R, 60), [0.0, -0.0, np.nan, 2.0 * R]])
+    o = law.onset(rng.uniform(0.1, 10.0, x.size), np.full(x.size, MASS))
+    for got, want in zip(law.tangential_stiffness(x, o), numpy_law.tangential_stiffness(x, o)):
+        np.testing.assert_array_equal(got, want)
+        assert np.array_equal(np.signbit(got), np.signbit(want))
+    o1 = {key: float(val[0]) for key, val in o.items()}
+    for got, want in zip(law.tangential_stiffness(x, o1), numpy_law.tangential_stiffness(x, o1)):
+        np.testing.assert_array_equal(got, want)
+
+
 def _answer(f, *args):
     """f(*args), or the text of the ValueError it raises."""
     try:

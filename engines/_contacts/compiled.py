@@ -121,11 +121,9 @@ class CompiledPath:
         else:
             raise RuntimeError(f"more than {MAX_SEGMENTS} contact onsets/separations in one step of {dt!r} s")
         impulse = np.empty((k, 3))
-        couple = np.empty((k, 3))
         K.finale(p, n, W, Wc, settled, in_c, y, dt, self.timing_correction, kg, LC, self.active, self.x, self.xdot,
                  self.s, self.vc, self.W_el, self.W_visc, self.Q_t, self.W_t, self.phase, self.outside,
-                 self.settled, self.J, self.dv_corr, self.dvc_corr, impulse, couple)
-        self.couple[p] = couple
+                 self.settled, self.J, self.dv_corr, self.dvc_corr, impulse, self.couple)
         info["settled"] += int(ints[0])
         info["settled_iterations"] += int(ints[1])
         info["substeps"] += int(ints[2])

@@ -390,11 +390,16 @@ class Records:
         correction going) is completed without the body-level output."""
         keep = []
         probe = self._probe if at_step_start or self._probe_batch is None else None
+        J = self.J
         for entry in self._pending:
             if at_step_start:
                 entry[3] += 1
             p, rec, axis, waited = entry
-            clean = waited >= 1 and not self.J[p].any()
+            if waited >= 1:
+                j0, j1, j2 = J[p].tolist()  # J[p].any() on Python floats (NaN counts as non-zero in both)
+                clean = not (j0 or j1 or j2)
+            else:
+                clean = False
             if clean:
                 if self._probe is not None:
                     if probe is None:  # the first record of a batch between steps
