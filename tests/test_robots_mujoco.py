@@ -84,13 +84,16 @@ def _pressed_bar(integrator: str, torque: float):
 
 def test_a_link_found_deep_at_its_onset_is_flagged_and_warned():
     """Never silent (issue 13, the MSF ant): a motor switched on inside a
-    step drives a link into the floor where the contacts' free flight (the
-    last step's accelerations) does not put it, and its corners begin
-    already overlapping, holding elastic energy no force worked for
-    (measured under Euler: 0.48 mm, 1.4 mJ, 1.8 times the contacts'
-    approach energy, COR 1.52; the resting ant's feet 0.2-0.4 mm, up to
-    3.4 mJ; the ant's ankle under RK4 26 mm, 111 J, COR 3.9). Each such
-    contact is flagged in its outside_validity and warned once per pair."""
+    step drives a link into the floor further than the contacts' free flight
+    puts it (their a_ext has the motor from this step on,
+    MujocoAdapter._actuation_change, but semi-implicit Euler moves the bar
+    by dt^2 a, the free flight by dt^2 a / 2: 1.5 against 0.75 mm toward
+    a 1 mm gap), and its corners begin already overlapping, holding elastic
+    energy no force worked for (measured under Euler: 0.48 mm, 1.4 mJ, 1.8
+    times the contacts' approach energy, COR 1.52; the resting ant's feet
+    0.2-0.4 mm, up to 3.4 mJ; the ant's ankle under RK4 26 mm, 111 J, COR
+    3.9, when the drives were seen a step late). Each such contact is
+    flagged in its outside_validity and warned once per pair."""
     adapter, messages = _pressed_bar("Euler", 0.1)
     assert adapter.deep_onsets >= 1
     deep = [m for m in messages if "deep at its onset" in m]
@@ -100,12 +103,12 @@ def test_a_link_found_deep_at_its_onset_is_flagged_and_warned():
 
 
 def test_rk4_on_links_is_warned_once_naming_the_fix():
-    """MSF pairs on links of a chain under RK4 (the MSF ant hops to 6 m
-    there, 2 impacts flagged; free bodies are as under Euler): one
-    RuntimeWarning naming the pairs and Euler / implicitfast."""
+    """MSF pairs on links of a chain under RK4 (the contact's force held
+    through the four stages, constraint forces seen a step late; free bodies
+    are as under Euler): one RuntimeWarning naming the pairs and the fix."""
     adapter, messages = _pressed_bar("RK4", 0.0)
     rk4 = [m for m in messages if "under RK4 on links" in m]
-    assert len(rk4) == 1 and "implicitfast" in rk4[0] and "('g', 'floor')" in rk4[0]
+    assert len(rk4) == 1 and "smaller timestep" in rk4[0] and "('g', 'floor')" in rk4[0]
 
 
 #: A pendulum held at rest by its joint limit: the limit's stored energy
@@ -194,3 +197,38 @@ def test_a_link_under_rk4_bounces_with_the_reference_cor(dt):
     assert adapter.deep_onsets == 0 and not rec.outside_validity
     v_out = -(data.qvel[0] - adapter.velocity_offset()[0]) * l
     assert abs(v_out / (rec.cor_n * v) - 1) < PENDULUM_RTOL
+
+
+#: The MSF ant under its own RK4 at 10 ms hopped to 6 m under the seeded
+#: torques when each step's new torque reached its contacts' free flight one
+#: step late. Its torso's highest point over the first 150 steps: measured
+#: 1.17 m with the drive seen in its step (also over 1,000 steps; Euler
+#: 1.13 m), 4.3 m without (a contact found deep at step 105, then the hop).
+ANT_RK4_Z_MAX = 1.5
+
+
+def test_the_ant_under_rk4_sees_its_drives_in_the_step_they_act():
+    """ant.xml at its own RK4, 10 ms, 150 steps of the seeded torques (a new
+    torque every step): the actuators' change since their last evaluation
+    enters each link pair's a_ext in the step it acts
+    (MujocoAdapter._actuation_change), so no contact is found deep at its
+    onset and the ant does not hop (ANT_RK4_Z_MAX). The 26 mm deep ankle
+    (COR 3.9) of the RK4 ant began at step 105 of this sequence."""
+    import warnings
+
+    path = os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml")
+    model, data, pairs = load_with_msf_floor(path, ContactPair(preset("natural-rubber"), preset("steel")))
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", RuntimeWarning)  # RK4 on links stays warned (docs/engines.md)
+        adapter = MujocoAdapter(model, data, pairs)
+    rng = np.random.default_rng(SEED)
+    lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
+    z = []
+    with installed(adapter):
+        for _ in range(150):
+            data.ctrl[:] = rng.uniform(lo, hi)
+            mujoco.mj_step(model, data)
+            z.append(float(data.qpos[2]))
+    assert adapter.jumps == 0 and adapter.deep_onsets == 0
+    assert max(z) < ANT_RK4_Z_MAX, max(z)

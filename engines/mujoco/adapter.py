@@ -74,7 +74,11 @@ step resolves): their step-averaged force is the best prediction of their
 force over the next step, so it stays in the other pairs' a_ext (without it
 a resting stack of rubber balls rests 80% too deep at dt = 1 ms). For the
 first step a_ext is gravity acting on the bodies that are not welded to the
-world.
+world. The pairs read through Jacobians (links of chains, box faces) add
+J M^-1 (change of the actuator forces since their last evaluation) in the
+step the drive acts (``MujocoAdapter._actuation_change``): a policy's new
+torque each step is not seen a step late (the MSF ant under RK4 hopped to
+6 m on that lag). Constraint forces (joint limits) stay one step late.
 
 The per-step work of the free group (pairs of a free sphere and a plane, a
 fixed body or another free sphere: detection, v_rel, W, the a_ext
@@ -1049,15 +1053,18 @@ class MujocoAdapter(EngineAdapter):
     def _warn_rk4_links(self) -> None:
         """Warn once (RuntimeWarning) when the model runs RK4 with MSF pairs on
         links of a chain: the contact's step-averaged force is held through
-        RK4's four stages and its free flight follows semi-implicit Euler, so
-        a link whose drives or joint limits move it inside the step is met
-        where the contact did not integrate it. Measured: the MSF ant
-        (pybullet_data ant.xml, RK4 at its own 10 ms, seeded torques;
-        scripts/ant_integrators.py) hops to 6.0 m with 2 of 12 impacts
-        flagged (COR 2.9, energy from outside the contact; COR 3.9, an ankle
-        found 26 mm inside the floor), under Euler below 0.84 m with none of
-        81. Free bodies under RK4 are as under Euler (tests/test_mujoco_hook.py).
-        Checked again when the integrator changes."""
+        RK4's four stages (the stages' other forces follow their states, the
+        contact's does not), and the forces MuJoCo's constraint solver gives
+        inside the step (joint limits) reach the contacts' free flight one
+        step late, as under Euler. The drives no longer do
+        (:meth:`_actuation_change`): their lag made the MSF ant (pybullet_data
+        ant.xml, RK4 at its own 10 ms, seeded torques; scripts/ant_integrators.py)
+        hop to 6.0 m with an ankle found 26 mm inside the floor (COR 3.9); it
+        now stays below 1.17 m (Euler 1.14 m). Left (1,000 steps of torques,
+        then 1,000 at rest): 53 contacts found deep at their onset under RK4
+        (4 under the torques, the others feet settling at rest, 0.03-0.4 mm),
+        95 under Euler. Free bodies under RK4 are as under Euler
+        (tests/test_mujoco_hook.py). Checked again when the integrator changes."""
         integ = int(self.model.opt.integrator)
         if integ == self._rk4_checked:
             return
@@ -1067,10 +1074,11 @@ class MujocoAdapter(EngineAdapter):
         names = [f"{i} {self.pair_names[i]}" for i in np.flatnonzero(self._link_pairs)[:4]]
         more = int(np.count_nonzero(self._link_pairs)) - len(names)
         warnings.warn(f"MSF under RK4 on links of a chain (pairs {', '.join(names)}{f' and {more} more' if more > 0 else ''}): "
-                      "the contacts' step-averaged force is held through RK4's four stages and their free flight "
-                      "follows semi-implicit Euler, so a link driven inside the step is met where the contact did not "
-                      "integrate it (the MSF ant at 10 ms hops to 6 m, impacts with COR 2.9 and 3.9, flagged); use "
-                      "the Euler or implicitfast integrator (model.opt.integrator), or a smaller timestep",
+                      "the contacts' step-averaged force is held through RK4's four stages, and joint-limit and "
+                      "other constraint forces acting inside a step reach the contacts' free flight one step late "
+                      "(as under Euler and implicitfast), so a link they move is met where the contact did not "
+                      "integrate it (the MSF ant at 10 ms: contacts found up to 0.4 mm deep at their onset, "
+                      "flagged); take a smaller timestep",
                       RuntimeWarning, stacklevel=3)
 
     def _check_deep_onsets(self, t0: float) -> None:
@@ -1083,7 +1091,8 @@ class MujocoAdapter(EngineAdapter):
         check leaves such contacts out (a link's drives and joint limits do
         work its probe does not see), the single contact's COR check too.
         Measured: the MSF ant under RK4 at 10 ms (scripts/ant_integrators.py)
-        had an ankle found 26 mm inside the floor at 7 m/s, COR 3.9."""
+        had an ankle found 26 mm inside the floor at 7 m/s, COR 3.9, before
+        its drives entered a_ext in their own step (:meth:`_actuation_change`)."""
         if not self._any_link:
             return
         mgr = self.manager
@@ -1103,12 +1112,13 @@ class MujocoAdapter(EngineAdapter):
                 continue
             self._deep_flagged_at[p] = float(mgr.t_onset[p])
             integ = int(self.model.opt.integrator)
-            why = ("MuJoCo's RK4 moves the positions with its four stages' velocities while the contact's free "
-                   "flight follows semi-implicit Euler: a fast-turning link lands inside the floor within a step; "
-                   "use the Euler or implicitfast integrator, or a smaller timestep"
+            why = ("MuJoCo's RK4 moved the link into overlap within a step the contact's free flight did not "
+                   "predict (a joint limit's or another constraint's force acting inside the step, seen a step "
+                   "late; a fast-turning link); take a smaller timestep"
                    if integ == int(mujoco.mjtIntegrator.mjINT_RK4) else
                    "the engine moved the bodies into overlap within a step the contact's free flight did not "
-                   "predict (a fast-turning link, a force acting inside the step); take a smaller timestep")
+                   "predict (semi-implicit Euler moves a body by dt v_end, dt^2/2 a further than the free flight; "
+                   "a joint limit's force acting inside the step; a fast-turning link); take a smaller timestep")
             note = (f"contact found {x:.3g} m deep at its onset (dt = {mgr.dt:g} s): its elastic energy there, "
                     f"{stored:.3g} J, was never worked for ({stored / approach:.3g} of its approach energy "
                     f"{approach:.3g} J): {why}")
@@ -1446,6 +1456,36 @@ class MujocoAdapter(EngineAdapter):
         take the torque in body axes, xmat^T tq (as _FreeGroup.apply)."""
         np.add.at(q, dof[:, None] + np.arange(3, 6), np.einsum("kji,kj->ki", d.xmat[b].reshape(-1, 3, 3), tq))
 
+    def _actuation_change(self) -> np.ndarray | None:
+        """The change of the generalised acceleration M^-1 (Q_a(now) - Q_a(last)) [(nv,)]
+        by the actuators since their force was last computed, None if none changed.
+
+        The finite-difference a_ext of a pair is the last step's relative
+        acceleration: it holds the actuator forces of the last step's controls.
+        A drive whose control changes between steps (a policy's or a seeded
+        torque sequence: a new torque every step) then acts one step before
+        its pair's free flight sees it, and a leg driven into the floor inside
+        a step is found there deep, with elastic energy no force worked for
+        (the MSF ant at 10 ms: 15 such onsets in 300 steps under Euler, a hop
+        to 2-6 m under RK4). The hook runs inside mj_passive, before MuJoCo's
+        own mj_fwdActuation: this step's actuator forces come from the same
+        call made here (MuJoCo recomputes them unchanged after the hook; the
+        controls, activations, transmission lengths, moments and velocities
+        are current). Q_a(last) is what the last forward pass left in
+        qfrc_actuator (RK4: its fourth stage). Joint-limit and other
+        constraint forces, solved after the hook, stay one step late."""
+        m, d = self.model, self.data
+        if m.nu == 0:
+            return None
+        last = d.qfrc_actuator.copy()
+        mujoco.mj_fwdActuation(m, d)
+        dQ = d.qfrc_actuator - last
+        if not np.any(dQ):
+            return None
+        out = np.zeros((1, m.nv))
+        mujoco.mj_solveM(m, d, out, dQ.reshape(1, -1))
+        return out[0]
+
     def _slow_rows(self, required) -> tuple[dict | None, dict, list]:
         """The candidate rows of the pairs read through Jacobians (a dict of
         ContactKinematics fields, None: no candidate), their points and
@@ -1456,6 +1496,7 @@ class MujocoAdapter(EngineAdapter):
         rows = []
         points = {}
         jacs = []
+        dq_act = self._actuation_change()
         for p in self._slow:
             det = self._geometry(p)
             x, n, point = float(det.x[0]), det.normal[0], det.point[0]
@@ -1470,6 +1511,8 @@ class MujocoAdapter(EngineAdapter):
                 a_ext = (v_rel - self._last_v[i] - self._last_dv[i]) / dt
             else:
                 a_ext = self._first_step_a_ext(p)
+            if dq_act is not None and self._have_last[i]:  # this step's drive, not the last one's
+                a_ext = a_ext + J @ dq_act
             self._last_v[i], self._last_dv[i], self._have_last[i] = v_rel, 0.0, True
             reach = float(closing_distance(-float(v_rel @ n), -float(a_ext @ n), dt, CANDIDATE_FACTOR))
             if x <= -(reach + self._push[i]) and not required[i]:
