@@ -1070,7 +1070,7 @@ def own_gaps(pair, x, xm_state, active, listed, own_gap, xdot, xd0, an, off, xd0
         o = 0.0
         if lst:
             o = off[p] * (1.0 if act else decay) + lead
-        own = own_gap[p] and not act and lst and xm <= 0.0 and abs(x[i] - xm) <= 2.0 * o + touch_tol
+        own = own_gap[p] and not act and lst and abs(x[i] - xm) <= 2.0 * o + touch_tol
         off[p] = o if (act or own) else 0.0
         xd0[p] = xd0_new[i]
         an[p] = an_new[i]

@@ -306,12 +306,14 @@ def test_body_probe_batch_is_used_once_per_batch_between_steps():
 
 
 def _own_gaps_numpy(pair, x, xm_state, active, listed, own_gap, xdot, xd0, an, off, xd0_new, an_new, dt, rate, tol):
-    """ContactManager._own_gaps as written in numpy before it was compiled (commit 23c1939)."""
+    """ContactManager._own_gaps as written in numpy before it was compiled (commit 23c1939), less its
+    condition xm <= 0 (issue 13: a contact that ended at force zero with x > 0 restarts from
+    touching, not from the engine's x)."""
     xm = xm_state[pair]
     act, lst = active[pair], listed[pair]
     lead = 0.5 * dt * (np.abs(xdot[pair] - xd0[pair]) + np.abs(an[pair]) * dt)
     o = np.where(lst, off[pair] * np.where(act, 1.0, 1.0 - rate) + lead, 0.0)
-    own = own_gap[pair] & ~act & lst & (xm <= 0.0) & (np.abs(x - xm) <= 2.0 * o + tol)
+    own = own_gap[pair] & ~act & lst & (np.abs(x - xm) <= 2.0 * o + tol)
     off[pair] = np.where(act | own, o, 0.0)
     xd0[pair] = xd0_new
     an[pair] = an_new

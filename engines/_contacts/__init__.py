@@ -80,9 +80,11 @@ dt/2 times the step's velocity change (semi-implicit Euler moves a body by
 dt v_end), so a pair not in contact that was a candidate in the last step
 keeps the manager's gap, relaxed toward the engine's by settle_rate and
 never past touching (:meth:`ContactManager._own_gaps`, for the pairs the
-adapters mark in ``own_gap``: free spheres): otherwise a light body
-rattling between two contacts begins its next contact already up to the
-lead deep, with elastic energy no force worked for.
+adapters mark in ``own_gap``: free spheres, and in MuJoCo a free body's
+narrow-phase points on a fixed body); a contact that ended at force zero
+with x > 0 restarts from touching. Otherwise a light body rattling between
+two contacts begins its next contact already up to the lead deep, with
+elastic energy no force worked for.
 
 Moving contact point. When the adapter gives ``ContactKinematics.lever``
 (free bodies in both adapters) the contact point moves with the overlap
