@@ -250,8 +250,11 @@ class LawBank:
     so a resting or rocking body reuses its few laws (the manager's law
     groups and the compiled kernel's constants stay few)."""
 
-    def __init__(self):
+    def __init__(self, kernel=None):
         self._laws: dict[tuple, object] = {}
+        #: law -> (code, constants) of the compiled kernel or None (engines._contacts.compiled.kernel_law):
+        #: given, the MSF laws built here integrate their onsets compiled (KernelOnsetMSFLaw)
+        self._kernel = kernel
 
     @staticmethod
     def _bin(r: float, tol: float):
@@ -269,11 +272,19 @@ class LawBank:
         key = (id(template), self._bin(ra, tol), self._bin(rb, tol), curv.footprint)
         law = self._laws.get(key)
         if law is None or curvature_mismatch(law.curvature, curv) > tol:
-            law = self._laws[key] = template.with_curvature(curv)
+            law = template.with_curvature(curv)
+            known = self._kernel(law) if self._kernel is not None and type(law) is MSFLaw else None
+            if known is not None:  # its onsets compiled (no table for a non-spherical msf contact)
+                law = KernelOnsetMSFLaw.of(law, *known)
+            law = self._laws[key] = law
         return law
 
     def __len__(self) -> int:
         return len(self._laws)
+
+    def __iter__(self):
+        """The laws built so far."""
+        return iter(list(self._laws.values()))
 
 
 # ------------------------------------------------------------ line contact ---
@@ -334,6 +345,72 @@ def side_ends(shape, pos, rot, plane_pos, plane_normal) -> SideEnds:
     x = -((lowest - np.asarray(plane_pos, dtype=float)) @ n)
     rise = np.array([sin_t, -sin_t])  # from end 0 (at -z) toward end 1 the side rises by z.n
     return SideEnds(x, lowest, rise, math.asin(abs(sin_t)), n.copy())
+
+
+def kernel_onset_one(law: MSFLaw, code: int, lc, v: float, m: float, omega_h: float | None = None) -> dict:
+    """MSFLaw.onset_one for a law the compiled kernel knows (code, constants
+    lc (NLC,) of engines._kernel), each collision integrated by
+    engines._impact_kernel.impact (the same DOP853 steps as
+    msf_contact._normal.integrate_normal, tests/test_narrow_mujoco.py and
+    tests/test_narrow_pybullet.py) and the self-consistent omega_x of (46) by
+    msf_contact.laws.self_consistent_omega from omega_h [rad/s] (None: pi /
+    the undamped contact's duration). v [m/s], m [kg]."""
+    x_scale = float(np.asarray(law.hertz_scale(v, m)).reshape(-1)[0])
+    x_limit = law.x_limit
+    oc = np.zeros((1, _K.NOC))
+    out = np.empty(_IK.NR)
+
+    def solve(omega):
+        """Integrate with eta'_E = E''/omega (omega 0: undamped); the moduli (out: the results)."""
+        mod = law._moduli_at(omega) if omega > 0.0 else law.moduli
+        oc[0, 0], oc[0, 1] = mod.E, (mod.E_loss / omega if omega > 0.0 else 0.0)
+        status = _IK.impact(code, lc, oc, m, v, x_scale, x_limit if x_limit is not None else -1.0, out)
+        if status == _IK.LIMIT:
+            raise ValueError(
+                f"the approach reached x = {x_limit:.6g} m = 2R before maximum compression: k_p = sqrt(2 - x/R) "
+                "of (15) has no real value beyond; the impact is outside the msf geometry (lower the speed)")
+        if status != _IK.OK:
+            raise RuntimeError("normal impact integration failed" if status == _IK.FAILED
+                               else "normal impact never reached maximum compression")
+        return mod
+
+    if isinstance(law.omega, float):
+        omega = law.omega
+    else:
+        if omega_h is None:
+            solve(0.0)
+            omega_h = math.pi / out[_IK.R_TAU]
+        omega = self_consistent_omega(omega_h, lambda w: (solve(w), out[_IK.R_TAU])[1], v, m)
+    mod = solve(omega)
+    return law._onset_dict(omega, mod, v, m, float(out[_IK.R_XMAX]))
+
+
+class KernelOnsetMSFLaw(MSFLaw):
+    """An MSFLaw whose engines' onset (:meth:`MSFLaw._onset_one_engine`, the
+    laws with no dimensionless table: an elliptic contact's msf k_p, a
+    frequency-dependent material) integrates each collision compiled
+    (:func:`kernel_onset_one` with the kernel's constants of the law,
+    engines._contacts.compiled.kernel_law); everything else is the law's.
+    :meth:`onset_reference` keeps the Python integration. LawBank gives the
+    laws it builds for a contact's curvature this onset (the pybullet duck:
+    0.47 s per onset in Python, each a law of its own hull vertex's fit)."""
+
+    @classmethod
+    def of(cls, law: MSFLaw, code: int, lc) -> "KernelOnsetMSFLaw":
+        """The same law (its state copied) with the compiled onset, code and
+        constants lc (NLC,) its engines._kernel ones
+        (engines._contacts.compiled.kernel_law); ``law`` itself unchanged."""
+        new = object.__new__(cls)
+        new.__dict__.update(law.__dict__)
+        new._kernel_constants = (int(code), np.array(lc, dtype=float))
+        return new
+
+    def _onset_one_engine(self, v: float, m: float) -> dict:
+        if self.omega == "paper":
+            return self.onset_one(v, m)
+        code, lc = self._kernel_constants
+        return kernel_onset_one(self, code, lc, v, m,
+                                math.pi / float(cf.hertz_tau(m, v, self.moduli.E, self.geom.R)))
 
 
 class SideEndLaw(MSFLaw):
@@ -449,36 +526,11 @@ class SideEndLaw(MSFLaw):
         twin of its integration (engines._impact_kernel.impact: the same
         DOP853 steps, ~2,000x cheaper than the Python one on a lying
         cylinder's end); the self-consistent root as MSFLaw's
-        (msf_contact.laws.self_consistent_omega)."""
+        (msf_contact.laws.self_consistent_omega): :func:`kernel_onset_one`."""
         lc = np.zeros(_K.NLC)  # what engines._kernel.forces' CODE_SIDE needs of the normal force
         lc[_K.LC_FZ] = 1.0 if self.separation == "force-zero" else 0.0
         self.fill_kernel_constants(lc)
-        x_scale = float(self.hertz_scale(v, m))
-        x_limit = self.x_limit
-        oc = np.zeros((1, _K.NOC))
-        out = np.empty(_IK.NR)
-
-        def solve(omega):
-            """Integrate with eta'_E = E''/omega (omega 0: undamped); (moduli, out)."""
-            mod = self._moduli_at(omega) if omega > 0.0 else self.moduli
-            oc[0, 0], oc[0, 1] = mod.E, (mod.E_loss / omega if omega > 0.0 else 0.0)
-            status = _IK.impact(_K.CODE_SIDE, lc, oc, m, v, x_scale, x_limit if x_limit is not None else -1.0, out)
-            if status == _IK.LIMIT:
-                raise ValueError(
-                    f"the approach reached x = {x_limit:.6g} m = 2R before maximum compression: k_p = sqrt(2 - x/R) "
-                    "of (15) has no real value beyond; the impact is outside the msf geometry (lower the speed)")
-            if status != _IK.OK:
-                raise RuntimeError("normal impact integration failed" if status == _IK.FAILED
-                                   else "normal impact never reached maximum compression")
-            return mod
-
-        if isinstance(self.omega, float):
-            omega = self.omega
-        else:
-            solve(0.0)
-            omega = self_consistent_omega(math.pi / out[_IK.R_TAU], lambda w: (solve(w), out[_IK.R_TAU])[1], v, m)
-        mod = solve(omega)
-        return self._onset_dict(omega, mod, v, m, float(out[_IK.R_XMAX]))
+        return kernel_onset_one(self, _K.CODE_SIDE, lc, v, m)
 
     def _parts(self, x):
         """(w a, b) [m] of this end at the approach x [m] (n,) (see the class)."""

@@ -3,7 +3,7 @@ benchmark prints:
 
     .venv/bin/python scripts/shape_numbers.py line      # a lying cylinder: two rim points vs the line law (both engines)
     .venv/bin/python scripts/shape_numbers.py profile   # cProfile of the MSF humanoid (200 steps)
-    .venv/bin/python scripts/shape_numbers.py objects   # the objects' MSF energy gain in MuJoCo against its bound
+    .venv/bin/python scripts/shape_numbers.py objects [pybullet]   # the objects' MSF energy gain (MuJoCo, or pybullet) against its bound
 
 ``line``: natural rubber on steel, a cylinder r 10 mm, 60 mm long, edge
 radius 1 mm, falling flat at 1 m/s: the reference solver's line law over
@@ -103,8 +103,8 @@ def _pybullet_lying_cylinder(pair, r, h, rho, m, v):
         pb.disconnect(c)
 
 
-def objects() -> None:
-    """experiments/configs/objects.toml's drops, MSF in MuJoCo only: the
+def objects(engine: str = "mujoco") -> None:
+    """experiments/configs/objects.toml's drops, MSF in one engine (mujoco or pybullet): the
     energy gain of experiments.scenarios.objects.msf_energy against
     ENERGY_GAIN_RTOL E0, and the islands the contacts' own check flagged."""
     import tomllib
@@ -115,14 +115,15 @@ def objects() -> None:
 
     cfg = tomllib.loads((Path(__file__).parents[1] / "experiments" / "configs" / "objects.toml").read_text())
     for obj in cfg["objects"]["run"]:
-        cell = {"object": obj, "engine": "mujoco", "objects": cfg["objects"], "materials": cfg["materials"],
+        cell = {"object": obj, "engine": engine, "objects": cfg["objects"], "materials": cfg["materials"],
                 "drop": dict(cfg["drop"], sample=cfg["drop"]["dt"])}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             (r,) = run_cell(cell)
         print(f"{obj}: E0 {r['E0']:.4f} J, gain {r['energy_gain']:.3g} J ({100 * r['energy_gain_rel']:.4f} %), "
               f"bound {ENERGY_GAIN_RTOL * r['E0']:.3g} J, above: {r['energy_gain_above_bound']}, impacts "
-              f"{r['impacts']}, outside {r['outside']}", flush=True)
+              f"{r['impacts']}, outside {r['outside']}, E end {r['E_end']:.4f} J, laws {r.get('laws')}, "
+              f"step {r['step_s'] * 1e3:.3g} ms", flush=True)
 
 
 def profile() -> None:
@@ -161,4 +162,7 @@ if __name__ == "__main__":
     what = sys.argv[1] if len(sys.argv) > 1 else ""
     if what not in ("line", "profile", "objects"):
         sys.exit("usage: scripts/shape_numbers.py line|profile|objects")
-    {"line": line, "profile": profile, "objects": objects}[what]()
+    if what == "objects" and len(sys.argv) > 2:
+        objects(sys.argv[2])
+    else:
+        {"line": line, "profile": profile, "objects": objects}[what]()

@@ -448,17 +448,35 @@ def test_plane_slots_follow_contacts_and_give_free_slots_to_the_deepest_features
 #: as the objects scenario) above its running minimum: float rounding of
 #: 0.076 J [J] (measured 0 over 1 s, 93 impacts).
 DUCK_GAIN_ATOL = 1e-9
+#: The duck with its laws' onsets compiled (engines._narrow.KernelOnsetMSFLaw,
+#: the laws LawBank builds for its hull vertices' fitted curvatures) against
+#: the same run with the Python integration (MSFLaw.onset_one): the same
+#: DOP853 steps, onset constants 1e-12 apart, so the same trajectory to
+#: float rounding (measured: heights equal to 1e-15 m over the first 0.25 s;
+#: over 1 s the runs part after 0.5 s as a tumbling body's do, by 82 um at
+#: most). 1e-9 m leaves round-off room to grow through the impacts.
+DUCK_SAME_ATOL = 1e-9
+#: KernelOnsetMSFLaw's onset constants against MSFLaw.onset_reference (the
+#: Python integration) on elliptic contacts: measured <= 9.3e-13 relative
+#: (the same scheme, sums in another order; the integration's own error
+#: ~1e-10 at rtol 1e-11), as SideEndLaw's COMPILED_ONSET_RTOL.
+KERNEL_ONSET_RTOL = 2e-9
 
 
-def test_the_duck_mesh_tumbles_on_its_hull_vertices_without_energy_gain():
+def _duck(steps, python_onset=False):
     """duck_vhacd.urdf (a V-HACD convex-hull mesh, 0.1 kg) dropped 50 mm,
     tilted and spinning, on steel with MSF, its hull vertices as contacts
-    (mesh_slots=4, as MuJoCo's; one slot reached x = 2R: the deepest vertex
-    jumps as it rolls): it lands and bounces with no energy gain and no
-    record flagged (the full second is experiments/configs/objects.toml)."""
+    (mesh_slots=4): (energies at steps without a pending timing correction
+    [J], heights each step [m], records, the adapter's laws).
+    python_onset: the laws' onsets by the Python integration."""
     import pybullet_data
 
+    from engines._narrow import KernelOnsetMSFLaw
+
     c = scenes.new_client(1e-3, gravity=9.81)
+    saved = KernelOnsetMSFLaw._onset_one_engine
+    if python_onset:
+        KernelOnsetMSFLaw._onset_one_engine = KernelOnsetMSFLaw.onset_one
     try:
         plane = scenes.add_plate(c)
         orn = pb.getQuaternionFromEuler([math.radians(25), math.radians(15), 0])
@@ -479,17 +497,53 @@ def test_the_duck_mesh_tumbles_on_its_hull_vertices_without_energy_gain():
             wl = np.array(pb.getMatrixFromQuaternion(q)).reshape(3, 3).T @ w
             return m * 9.81 * p[2] + 0.5 * m * v @ v + 0.5 * wl @ (I * wl) + ad.manager.stored_energy()
 
-        E = [energy()]
-        for _ in range(250):
+        E, z = [energy()], []
+        for _ in range(steps):
             ad.step()
+            z.append(pb.getBasePositionAndOrientation(u, physicsClientId=c)[0][2])
             if not np.any(ad.manager.J != 0.0):
                 E.append(energy())
-        E = np.array(E)
-        assert np.max(E - np.minimum.accumulate(E)) <= DUCK_GAIN_ATOL
-        assert len(ad.records) >= 2 and not any(r.outside_validity for r in ad.records)
-        assert E[-1] < 0.9 * E[0]  # the impacts dissipate
+        return np.array(E), np.array(z), list(ad.records), list(ad.laws)
     finally:
+        KernelOnsetMSFLaw._onset_one_engine = saved
         pb.disconnect(c)
+
+
+def test_the_duck_mesh_tumbles_on_its_hull_vertices_without_energy_gain():
+    """The duck (_duck; mesh_slots=4, as MuJoCo's; one slot reached x = 2R:
+    the deepest vertex jumps as it rolls) lands and bounces with no energy
+    gain and no record flagged (the full second is
+    experiments/configs/objects.toml); its laws for the vertices' curvatures
+    have their onsets compiled, and the run is the one the Python
+    integration of the onsets gives (DUCK_SAME_ATOL)."""
+    from engines._narrow import KernelOnsetMSFLaw
+
+    E, z, records, laws = _duck(250)
+    assert np.max(E - np.minimum.accumulate(E)) <= DUCK_GAIN_ATOL
+    assert len(records) >= 2 and not any(r.outside_validity for r in records)
+    assert E[-1] < 0.9 * E[0]  # the impacts dissipate
+    assert laws and all(type(lw) is KernelOnsetMSFLaw for lw in laws)
+    _, z_py, records_py, _ = _duck(250, python_onset=True)
+    assert np.max(np.abs(z - z_py)) <= DUCK_SAME_ATOL
+    assert [r.cor_n for r in records] == pytest.approx([r.cor_n for r in records_py], rel=KERNEL_ONSET_RTOL)
+
+
+def test_kernel_onset_is_the_python_onset_on_elliptic_contacts():
+    """engines._narrow.KernelOnsetMSFLaw (what LawBank builds for a contact's
+    curvature) against MSFLaw.onset_reference: every onset constant within
+    KERNEL_ONSET_RTOL on elliptic contacts (R_a/R_b 1/7.5 and 1/2, PTFE and
+    natural rubber on steel, 0.01-1 m/s); the law's other methods are its own."""
+    from engines._contacts.compiled import kernel_law
+    from engines._narrow import KernelOnsetMSFLaw
+
+    for mat, curv in ((preset("ptfe"), Curvature(0.004, 0.03)), (RUBBER, Curvature(0.01, 0.02))):
+        law = make_law("msf", ContactPair(mat, STEEL), curv)
+        fast = KernelOnsetMSFLaw.of(law, *kernel_law(law))
+        assert not law.scalable and fast.geom is law.geom and type(law).__name__ == "MSFLaw"
+        for v, m in ((0.01, 0.02), (0.3, 0.05), (1.0, 0.1)):
+            got, want = fast.onset([v], [m]), law.onset_reference([v], [m])
+            for key in want:
+                np.testing.assert_allclose(got[key], want[key], rtol=KERNEL_ONSET_RTOL, err_msg=key)
 
 
 @pytest.mark.parametrize("k", [0, 9, 2.5])

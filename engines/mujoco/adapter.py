@@ -497,10 +497,11 @@ class MujocoAdapter(EngineAdapter):
             self._narrow = NarrowPhase(model, [(g1, g2) for g1, g2, *_ in self._narrow_pairs])
             self._narrow_key = None
             self._narrow_found: list = []
+            from engines._contacts.compiled import kernel_law
             from engines._narrow import LawBank
 
             #: a law per contact curvature, built from the PairSpec's (engines._narrow.LawBank, _narrow_law)
-            self.laws = LawBank()
+            self.laws = LawBank(kernel_law)
         super().__init__(expanded)
         nv = model.nv
         self._jac = np.zeros((3, nv))

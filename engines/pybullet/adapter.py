@@ -345,10 +345,11 @@ class PybulletAdapter(EngineAdapter):
         self._chains: dict[int, list[tuple[int, int]]] = {}  # pair -> [(body uid, joint)] of its links' chains
         # the narrow pairs' points of this step, per slot (x, point, normal) or None (beyond the reach)
         self._narrow_found: list = [None] * n
+        from engines._contacts.compiled import kernel_law
         from engines._narrow import LawBank
 
         #: a law per contact curvature, built from the PairSpec's (engines._narrow.LawBank, _narrow_law)
-        self.laws = LawBank()
+        self.laws = LawBank(kernel_law)
 
     # -- validation ---------------------------------------------------------
     def _check_body(self, b, label):
