@@ -9,17 +9,18 @@ the base height at the end of the torques, the MSF impact records, and the
 mechanical energy (kinetic + gravitational) over the rest phase (its
 largest rise above the rest phase's start after the first fifth).
 
-Both run at their own integrator (the ant RK4, the humanoid Euler): the
-step tracker reads RK4 steps with damped, armatured joints as steps
-(issue 11). The rest phase's energy is the physical one: kinetic with the
-MSF timing correction's one-step offset taken out
-(``MujocoAdapter.velocity_offset``), gravitational, plus the elastic energy
-held in the MSF contacts (``ContactManager.stored_energy``); its largest
-rise over one step is split by whether one of MuJoCo's joint-limit
-constraints acted in that step (a soft constraint whose own stored energy
-is not in the sum). Under RK4 the MSF ant hops under these torques,
-impacts flagged for energy from outside the contact
-(scripts/ant_integrators.py, docs/engines.md).
+Both run at their own time step; the ant's RK4 is replaced by Euler (MSF
+on links under RK4 is warned by the adapter, and RK4 keeps no record of its
+stages' limit forces). The rest phase's energy is
+:class:`engines.mujoco.robots.RestEnergy`'s account: kinetic energy of the
+physical velocities (``MujocoAdapter.velocity_offset`` taken out),
+gravitational, the energy held in and exchanged by the MSF contacts
+(``ContactManager.stored_energy``) and the energy MuJoCo's joint-limit
+constraints took out (minus the work of their forces, a soft constraint
+being no spring). A rest step that raises it beyond its bound
+(``REST_GAIN_RTOL``) is energy the account does not explain: counted in the
+record (``*_rest_unexplained_steps``, the largest ``*_rest_unexplained_max_J``)
+and warned on stderr.
 """
 
 from __future__ import annotations
@@ -47,19 +48,12 @@ def _variant(name: str, msf: bool):
 
     path = os.path.join(pybullet_data.getDataPath(), "mjcf", name)
     model, data, pairs = load_with_msf_floor(path, ContactPair(preset("natural-rubber"), preset("steel")))
+    if model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:  # the module docstring
+        model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
     if not msf:  # the same model with MuJoCo's own contact: no exclusion
         model.exclude_signature[:] = -1
         return model, data, None
     return model, data, MujocoAdapter(model, data, pairs)
-
-
-def _limit_force(data) -> float:
-    """Sum of |force| of MuJoCo's joint-limit constraints in the last step [N or N m]."""
-    import mujoco
-
-    n = data.nefc
-    on = data.efc_type[:n] == mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT
-    return float(np.sum(np.abs(data.efc_force[:n][on])))
 
 
 def measure(name: str, steps: int) -> dict:
@@ -68,11 +62,12 @@ def measure(name: str, steps: int) -> dict:
     import mujoco
 
     from engines.mujoco import installed
-    from engines.mujoco.robots import mechanical_energy
+    from engines.mujoco.robots import RestEnergy
 
     out = {"name": "robots", "engine": "mujoco", "model": name, "n_bodies": None}
     for mode in ("msf", "builtin"):
         model, data, adapter = _variant(name, mode == "msf")
+        out["integrator"] = int(model.opt.integrator)
         out["dt"] = float(model.opt.timestep)
         out["n_bodies"] = int(model.nbody - 1)
         rng = np.random.default_rng(SEED)
@@ -89,26 +84,18 @@ def measure(name: str, steps: int) -> dict:
             out[f"{mode}_step_median_s"] = float(np.median(wall))
             out[f"{mode}_base_height_m"] = float(data.qpos[2])
             data.ctrl[:] = 0.0
-            E, limited = [], []
+            account = RestEnergy(model, data, adapter)
+            E = [account.total]
             for _ in range(steps):
                 mujoco.mj_step(model, data)
-                if adapter is None:
-                    E.append(mechanical_energy(model, data))
-                else:  # the physical velocities and the energy held in the MSF contacts
-                    E.append(mechanical_energy(model, data, data.qvel - adapter.velocity_offset())
-                             + adapter.manager.stored_energy())
-                limited.append(_limit_force(data) > 0.0)
+                E.append(account.update())
         E = np.array(E)
         out[f"{mode}_rest_energy_J"] = [float(E[0]), float(E[-1])]
-        out[f"{mode}_rest_energy_rise_J"] = float(np.max(E[steps // 5:] - E[steps // 5]))
-        # the largest rise over one step after the first fifth, in steps where one of MuJoCo's
-        # joint-limit constraints pushes (a soft constraint: its stored energy is not in the sum)
-        # and in the others
-        rise = np.diff(E)[steps // 5:]
-        lim = np.array(limited[1:])[steps // 5:]
-        out[f"{mode}_rest_step_rise_limits_J"] = float(np.max(rise[lim], initial=0.0))
-        out[f"{mode}_rest_step_rise_free_J"] = float(np.max(rise[~lim], initial=0.0))
-        out[f"{mode}_rest_steps_limited"] = int(np.count_nonzero(lim))
+        out[f"{mode}_rest_energy_rise_J"] = float(np.max(E - E[0]))
+        out[f"{mode}_rest_step_rise_max_J"] = float(np.max(np.diff(E)))
+        out[f"{mode}_rest_limits_absorbed_J"] = account.absorbed
+        out[f"{mode}_rest_unexplained_steps"] = len(account.gains)
+        out[f"{mode}_rest_unexplained_max_J"] = max((g[1] for g in account.gains), default=0.0)
         if adapter is not None:
             out["msf_records"] = len(adapter.records)
             out["msf_managed_contacts"] = len(adapter.pairs)
@@ -150,9 +137,11 @@ def standing(name: str, steps: int = STAND_STEPS) -> dict:
 
 
 def _describe(r: dict) -> list[str]:
-    return [f"  rest, largest step rise: msf {r['msf_rest_step_rise_free_J']:.3g} J without a joint limit acting, "
-            f"{r['msf_rest_step_rise_limits_J']:.3g} J with; built-in {r['builtin_rest_step_rise_free_J']:.3g}, "
-            f"{r['builtin_rest_step_rise_limits_J']:.3g} J",
+    return [f"  rest (RestEnergy): msf {r['msf_rest_energy_J'][0]:.4g} -> {r['msf_rest_energy_J'][1]:.4g} J, limits took "
+            f"{r['msf_rest_limits_absorbed_J']:.3g} J, largest step rise {r['msf_rest_step_rise_max_J']:.3g} J, "
+            f"{r['msf_rest_unexplained_steps']} steps above the bound (largest {r['msf_rest_unexplained_max_J']:.3g} J); "
+            f"built-in {r['builtin_rest_energy_J'][0]:.4g} -> {r['builtin_rest_energy_J'][1]:.4g} J, "
+            f"{r['builtin_rest_unexplained_steps']} steps above (largest {r['builtin_rest_unexplained_max_J']:.3g} J)",
             f"  msf {r['msf_step_median_s'] * 1e3:.2f} ms, builtin {r['builtin_step_median_s'] * 1e3:.3f} ms per step "
             f"(medians; ratio {r['ratio_median_msf_over_builtin']:.0f}, load {r['load_avg_1min']:.1f}); "
             f"rest energy rise msf {r['msf_rest_energy_rise_J']:.3g} J"]

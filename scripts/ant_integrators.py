@@ -13,10 +13,12 @@ the contacts they interrupted, the impact records and how many are flagged
 
 ``--rest``: after the torques, the energy at rest (kinetic of the physical
 velocities + gravity + the contacts' stored energy, robots.mechanical_energy)
-with and without the joint limits' stored energy (robots.limit_energy): over
-the rest phase after its first fifth, the steps where it rises by more than
-1 uJ, the largest rise, and how many of the rising steps had a contact found
-deep at its onset (flagged, MujocoAdapter.deep_onsets) and the rise they carry.
+without and (Euler only: RK4 keeps no record of its stages' limit forces)
+with the energy the joint limits took, the work of their forces
+(robots.RestEnergy): over the rest phase after its first fifth, the steps
+where it rises by more than 1 uJ, the largest rise, and how many of the
+rising steps had a contact found deep at its onset (flagged,
+MujocoAdapter.deep_onsets) and the rise they carry.
 """
 
 from __future__ import annotations
@@ -61,7 +63,7 @@ def rest(integrator: str, torque_steps: int, rest_steps: int) -> None:
     import pybullet_data
 
     from engines.mujoco import MujocoAdapter, installed
-    from engines.mujoco.robots import load_with_msf_floor, mechanical_energy
+    from engines.mujoco.robots import RestEnergy, load_with_msf_floor, mechanical_energy
     from msf_contact import ContactPair, preset
 
     path = os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml")
@@ -79,16 +81,19 @@ def rest(integrator: str, torque_steps: int, rest_steps: int) -> None:
                 data.ctrl[:] = rng.uniform(lo, hi)
                 mujoco.mj_step(model, data)
             data.ctrl[:] = 0.0
+            account = RestEnergy(model, data, adapter) if integrator != "rk4" else None
             for _ in range(rest_steps):
                 mujoco.mj_step(model, data)
-                v = data.qvel - adapter.velocity_offset()
-                stored = adapter.manager.stored_energy()
-                for lim in (False, True):
-                    E[lim].append(mechanical_energy(model, data, v, limits=lim) + stored)
+                E[False].append(mechanical_energy(model, data, data.qvel - adapter.velocity_offset())
+                                + adapter.manager.stored_energy())
+                if account is not None:
+                    E[True].append(account.update())
                 deep.append(adapter.deep_onsets)
     s0 = rest_steps // 5
     new_deep = np.diff(np.array(deep[s0:])) > 0
     for lim in (False, True):
+        if not E[lim]:
+            continue
         d = np.diff(np.array(E[lim][s0:]))
         up = d > 1e-6
         print(f"| {integrator} | {'with' if lim else 'without'} | {int(up.sum())} of {d.size} | "
