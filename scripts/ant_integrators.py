@@ -5,6 +5,7 @@ quotes.
 
     .venv/bin/python scripts/ant_integrators.py [--steps 300]
     .venv/bin/python scripts/ant_integrators.py --rest [--torque-steps 60 --rest-steps 300]
+    .venv/bin/python scripts/ant_integrators.py --deep [--substeps 1 2 4]
 
 Seeded random torques (uniform in the control range, seed 13) for the first
 half of the steps, none after. Per integrator: the step tracker's jumps and
@@ -57,6 +58,45 @@ def run(integrator: str, steps: int) -> dict:
             "z_min": min(z), "z_max": max(z), "z_end": z[-1]}
 
 
+def deep(integrator: str, substeps: int) -> str:
+    """1,000 torques of the seeded sequence, each held for 10 ms, at the
+    time step 10 ms / substeps, then 10 s at rest: a table row of the
+    impacts, those flagged, the contacts found deep at their onset (under
+    the torques) and the torso's highest point [m]."""
+    import mujoco
+    import numpy as np
+    import pybullet_data
+
+    from engines.mujoco import MujocoAdapter, installed
+    from engines.mujoco.robots import load_with_msf_floor
+    from msf_contact import ContactPair, preset
+
+    path = os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml")
+    model, data, pairs = load_with_msf_floor(path, ContactPair(preset("natural-rubber"), preset("steel")))
+    model.opt.integrator = getattr(mujoco.mjtIntegrator, f"mjINT_{integrator.upper()}")
+    model.opt.timestep = 0.01 / substeps
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        adapter = MujocoAdapter(model, data, pairs)
+        rng = np.random.default_rng(13)
+        lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
+        z_max = 0.0
+        with installed(adapter):
+            for _ in range(1000):
+                data.ctrl[:] = rng.uniform(lo, hi)
+                for _ in range(substeps):
+                    mujoco.mj_step(model, data)
+                    z_max = max(z_max, float(data.qpos[2]))
+            under = adapter.deep_onsets
+            data.ctrl[:] = 0.0
+            for _ in range(1000 * substeps):
+                mujoco.mj_step(model, data)
+                z_max = max(z_max, float(data.qpos[2]))
+    recs = adapter.records
+    return (f"| {integrator} | {1e3 * model.opt.timestep:g} | {len(recs)} | "
+            f"{sum(1 for r in recs if r.outside_validity)} | {adapter.deep_onsets} ({under}) | {z_max:.3f} |")
+
+
 def rest(integrator: str, torque_steps: int, rest_steps: int) -> None:
     import mujoco
     import numpy as np
@@ -107,7 +147,21 @@ def main(argv=None) -> int:
     ap.add_argument("--rest", action="store_true", help="the energy at rest, with and without the limits")
     ap.add_argument("--torque-steps", type=int, default=60)
     ap.add_argument("--rest-steps", type=int, default=300)
+    ap.add_argument("--deep", action="store_true",
+                    help="1,000 torques then 10 s at rest: contacts found deep at their onset")
+    ap.add_argument("--substeps", type=int, nargs="+", default=[1],
+                    help="with --deep: time steps 10 ms / each of these")
     a = ap.parse_args(argv)
+    if a.deep:
+        bad = [k for k in a.substeps if k < 1]
+        if bad:
+            ap.error(f"--substeps {bad[0]}: each must be a whole number >= 1")
+        print("| integrator | dt [ms] | impacts | flagged | found deep (under the torques) | torso z max [m] |")
+        print("|---|---|---|---|---|---|")
+        for k in a.substeps:
+            for integ in ("rk4", "euler"):
+                print(deep(integ, k), flush=True)
+        return 0
     if a.rest:
         print("| integrator | limits' energy | steps rising > 1 uJ | largest rise [mJ] | of them with a deep onset |")
         print("|---|---|---|---|---|")
