@@ -5,7 +5,7 @@ The same arithmetic as the numpy methods of
 :class:`engines.mujoco.adapter.MujocoAdapter`, written per pair with scalar
 loops and compiled, reading the MjData arrays (numpy views) directly:
 
-1. :func:`free_kinematics`: detection (sphere-plane, sphere-sphere;
+1. :func:`free_kinematics_into`: detection (sphere-plane, sphere-sphere;
    :mod:`engines._geometry`), v_rel from ``cvel``, the a_ext estimate and its
    state, the candidate test (:func:`engines._contacts.closing_distance`),
    W, W_com and v_com_rel of the candidates;
@@ -41,7 +41,7 @@ NGI = 13
 F_R1, F_R2, F_INV_M1, F_INV_M2, F_A0, F_INVI1, F_INVI2 = 0, 1, 2, 3, 4, 7, 10
 NGF = 13
 
-#: error codes of free_kinematics (the adapter then calls the numpy detection, which raises)
+#: error codes of free_kinematics_into (the adapter then calls the numpy detection, which raises)
 ERR_NONE, ERR_NONFINITE, ERR_COINCIDENT = 0, 1, 2
 
 
@@ -99,9 +99,9 @@ def _inverse_inertia(W, k, X, b, iI0, iI1, iI2, r0, r1, r2, inv_m, add):
 
 
 @njit(cache=True, error_model="numpy")
-def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, ximat, required,
-                    last_v, last_dv, have_last, dt, factor, coincident_rtol, push, last_r, last_gap,
-                    hold, hold_n, hold_x):
+def free_kinematics_into(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, ximat, required,
+                         last_v, last_dv, have_last, dt, factor, coincident_rtol, push, last_r, last_gap,
+                         hold, hold_n, hold_x, pair, x, nrm, point, v_rel, v_com, W, W_com, a_ext, p1, p2, scratch):
     """Kinematics of every pair of the group and the rows of its candidates.
 
     gi, gf: the group's constants (module docstring); MjData arrays as they
@@ -117,25 +117,17 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
     keeps the normal of its onset and the manager's approach (the adapter's
     ``_held_geometry``).
 
-    Returns (err, pair (n,), x (n,), normal, point, v_rel, v_com_rel (n, 3),
-    W, W_com (n, 3, 3), a_ext (n, 3), p1, p2 (k, 3)): the n candidates in
-    group order, and every pair's contact points on body 1 and body 2. err
-    != ERR_NONE: a state the numpy detection refuses (nothing updated).
+    Into the caller's arrays (each with at least k = len(gi) rows; the
+    adapter keeps them from step to step, so nothing is allocated, boxed or
+    freed per step): pair (k,) int64, x (k,), normal, point, v_rel,
+    v_com_rel (k, 3), W, W_com (k, 3, 3), a_ext (k, 3): the n candidates in
+    group order in their first n rows; p1, p2 (k, 3): every pair's contact
+    points on body 1 and body 2; scratch (k, 4). Returns (err, n); err !=
+    ERR_NONE: a state the numpy detection refuses (nothing updated).
     """
     k = gi.shape[0]
-    pair = np.empty(k, np.int64)
-    x = np.empty(k)
-    nrm = np.empty((k, 3))
-    point = np.empty((k, 3))
-    v_rel = np.empty((k, 3))
-    v_com = np.empty((k, 3))
-    W = np.empty((k, 3, 3))
-    W_com = np.zeros((k, 3, 3))
-    a_ext = np.empty((k, 3))
-    p1 = np.empty((k, 3))
-    p2 = np.empty((k, 3))
-    xs = np.empty(k)
-    ns = np.empty((k, 3))
+    xs = scratch[:, 0]
+    ns = scratch[:, 1:4]
     # detection first, for all pairs: refuse before changing any state
     plane_g = -1
     pn0, pn1, pn2 = 0.0, 0.0, 1.0
@@ -147,19 +139,16 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
         R = gf[g, F_R1]
         if not (np.isfinite(c0) and np.isfinite(c1) and np.isfinite(c2)
                 and np.isfinite(o0) and np.isfinite(o1) and np.isfinite(o2)):
-            return ERR_NONFINITE, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
-                W_com[:0], a_ext[:0], p1, p2
+            return ERR_NONFINITE, 0
         if gi[g, I_PLANE]:
             g2 = gi[g, I_G2]
             if g2 != plane_g:  # the plane's unit normal, once per plane in a row of pairs
                 u0, u1, u2 = geom_xmat[g2, 2], geom_xmat[g2, 5], geom_xmat[g2, 8]
                 if not (np.isfinite(u0) and np.isfinite(u1) and np.isfinite(u2)):
-                    return ERR_NONFINITE, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
-                        W_com[:0], a_ext[:0], p1, p2
+                    return ERR_NONFINITE, 0
                 ln = math.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
                 if not ln > 0.0:
-                    return ERR_NONFINITE, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
-                        W_com[:0], a_ext[:0], p1, p2
+                    return ERR_NONFINITE, 0
                 pn0, pn1, pn2 = u0 / ln, u1 / ln, u2 / ln
                 plane_g = g2
             n0, n1, n2 = pn0, pn1, pn2
@@ -170,8 +159,7 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
             e0, e1, e2 = c0 - o0, c1 - o1, c2 - o2
             dist = math.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
             if dist <= coincident_rtol * (R + R2):
-                return ERR_COINCIDENT, pair[:0], x[:0], nrm[:0], point[:0], v_rel[:0], v_com[:0], W[:0], \
-                    W_com[:0], a_ext[:0], p1, p2
+                return ERR_COINCIDENT, 0
             n0, n1, n2 = e0 / dist, e1 / dist, e2 / dist
             xx = R + R2 - dist
             ph = gi[g, I_PAIR]
@@ -274,15 +262,16 @@ def free_kinematics(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, xima
             _inverse_inertia(W, n, ximat, b2, gf[g, F_INVI2], gf[g, F_INVI2 + 1], gf[g, F_INVI2 + 2],
                              q20 - x20, q21 - x21, q22 - x22, gf[g, F_INV_M2], True)
         wc = gf[g, F_INV_M1] + gf[g, F_INV_M2]
-        W_com[n, 0, 0], W_com[n, 1, 1], W_com[n, 2, 2] = wc, wc, wc
+        W_com[n, 0, 0], W_com[n, 0, 1], W_com[n, 0, 2] = wc, 0.0, 0.0
+        W_com[n, 1, 0], W_com[n, 1, 1], W_com[n, 1, 2] = 0.0, wc, 0.0
+        W_com[n, 2, 0], W_com[n, 2, 1], W_com[n, 2, 2] = 0.0, 0.0, wc
         d10, d11, d12 = x10 - c10, x11 - c11, x12 - c12
         d20, d21, d22 = x20 - c20, x21 - c21, x22 - c22
         v_com[n, 0] = (ua0 + (wa1 * d12 - wa2 * d11)) - (ub0 + (wb1 * d22 - wb2 * d21))
         v_com[n, 1] = (ua1 + (wa2 * d10 - wa0 * d12)) - (ub1 + (wb2 * d20 - wb0 * d22))
         v_com[n, 2] = (ua2 + (wa0 * d11 - wa1 * d10)) - (ub2 + (wb0 * d21 - wb1 * d20))
         n += 1
-    return ERR_NONE, pair[:n], x[:n], nrm[:n], point[:n], v_rel[:n], v_com[:n], W[:n], W_com[:n], a_ext[:n], \
-        p1, p2
+    return ERR_NONE, n
 
 
 @njit(cache=True, error_model="numpy")

@@ -617,6 +617,7 @@ class MujocoAdapter(EngineAdapter):
         self._link_pairs = np.array([any(not self._free_body[b] and int(model.body_weldid[b]) != 0
                                          for b in (p.body1, p.body2)) for p in self._pairs], dtype=bool)
         self._required = np.zeros(len(self._pairs), bool)  # _compute_compiled's scratch
+        self._fk_bufs = None  # the free group's kinematics arrays (_compute_compiled)
         self._any_link = bool(self._link_pairs.any())  # _check_deep_onsets has nothing to look at without one
         self._rk4_checked = None
         self._warn_rk4_links()
@@ -1297,10 +1298,21 @@ class MujocoAdapter(EngineAdapter):
         f = self._fast
         fast = p1 = p2 = None
         if f.index.size:
-            err, pair, x, nrm, point, v_rel, v_com, W, W_com, a_ext, p1, p2 = K.free_kinematics(
+            # into the group's arrays kept from step to step (nothing allocated or freed per step:
+            # the rows are this step's until the next _compute, which is all the manager and
+            # contact_forces read them for)
+            b = self._fk_bufs
+            if b is None:
+                k = self._gi.shape[0]
+                b = self._fk_bufs = (np.empty(k, np.int64), np.empty(k), np.empty((k, 3)), np.empty((k, 3)),
+                                     np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3, 3)), np.empty((k, 3, 3)),
+                                     np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 4)))
+            err, n = K.free_kinematics_into(
                 self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat, required,
                 self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push,
-                self._last_r, self._last_gap, *self._held_geometry(required))
+                self._last_r, self._last_gap, *self._held_geometry(required), *b)
+            pair, x, nrm, point, v_rel, v_com, W, W_com, a_ext = (a[:n] for a in b[:9])
+            p1, p2 = b[9], b[10]
             if err != K.ERR_NONE:
                 for _ in f._detect(d, d.geom_xpos[f.g1]):  # the numpy detection says what is wrong
                     pass
