@@ -107,6 +107,7 @@ import numpy as np
 
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
 from engines._contacts.state import CENTRED_RTOL, ENERGY_GAIN_RTOL, V_ONSET_MIN, lever_terms_free
+from engines._contacts.balance import elastic_energy
 from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box, sphere_plane, sphere_sphere
 from engines._sweep import sweep
@@ -159,9 +160,6 @@ _NARROW = ("sphere", "plane", "box", "capsule", "cylinder", "ellipsoid", "mesh")
 #: already below the plane took the slot as a deep onset, COR 22 in a step),
 #: takes more through the adapter's ``mesh_slots``.
 NARROW_SLOTS = {"box": 4, "cylinder": 4, "capsule": 2}
-#: Gauss-Legendre nodes for a contact's elastic energy at its onset overlap (as
-#: ContactManager.stored_energy: exact for the x^(3/2) and linear laws to round-off)
-DEEP_NODES, DEEP_WEIGHTS = np.polynomial.legendre.leggauss(8)
 _ZERO3 = np.zeros(3)  # what body 2 may be; body 1 is a sphere
 
 
@@ -1112,9 +1110,9 @@ class MujocoAdapter(EngineAdapter):
                 continue
             x = float(mgr.x_onset[p])
             law = mgr._groups[mgr._group_of[p]]
-            onset = {k: np.full(DEEP_NODES.size, v[mgr._pos[p]]) for k, v in mgr._onset[mgr._group_of[p]].items()}
-            F = law.normal_force(0.5 * x * (DEEP_NODES + 1.0), np.zeros(DEEP_NODES.size), onset)
-            stored = 0.5 * x * float(DEEP_WEIGHTS @ F)
+            pos = mgr._pos[p]
+            onset = {k: v[pos:pos + 1] for k, v in mgr._onset[mgr._group_of[p]].items()}
+            stored = float(elastic_energy(law, np.array([x]), onset)[0])  # as ContactManager.stored_energy
             m = float(mgr.m_eff[p])
             approach = 0.5 * m * max(float(mgr.v_n_in[p]) ** 2, V_ONSET_MIN ** 2)
             if stored <= ENERGY_GAIN_RTOL * approach:
