@@ -12,11 +12,13 @@ Seeded random controls for the torque steps (uniform in each actuator's
 control range, or in [-1, 1] with ``--unit-controls`` as a user's loop
 might: MuJoCo clamps them), none after. RK4 models run under Euler at
 their own time step (RestEnergy refuses RK4). ``--builtin``: MuJoCo's own
-contact instead of MSF. Printed: the account at the start and end of the
-rest phase, its largest one-step change, the steps it rose beyond its bound
-(RestEnergy.gains), the energy the limits took; the limit episodes that
-ended in each phase, how many gave back more energy than they took and
-how much.
+contact instead of MSF. ``--resting-in-islands``: an experiment on the
+manager (ContactManager._resting replaced for the rest phase: no row is
+resting, so a body's resting contacts are solved in its island). Printed:
+the account at the start and end of the rest phase, its largest one-step
+change, the steps it rose beyond its bound (RestEnergy.gains), the energy
+the limits took; the limit episodes that ended in each phase, how many
+gave back more energy than they took and how much.
 """
 
 from __future__ import annotations
@@ -47,6 +49,9 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=13)
     ap.add_argument("--unit-controls", action="store_true")
     ap.add_argument("--builtin", action="store_true")
+    ap.add_argument("--resting-in-islands", action="store_true",
+                    help="an experiment: from the rest phase on, no contact row counts as resting, so a body's "
+                         "resting contacts are solved in its island instead of alone with held forces")
     a = ap.parse_args(argv)
     model, data, pairs = load_with_msf_floor(os.path.join(pybullet_data.getDataPath(), "mjcf", a.model),
                                              ContactPair(preset("natural-rubber"), preset("steel")))
@@ -66,6 +71,8 @@ def main(argv=None) -> int:
             for k in range(a.torque_steps + a.rest_steps):
                 if k == a.torque_steps:
                     data.ctrl[:] = 0.0
+                    if a.resting_in_islands and adapter is not None:
+                        adapter.manager._resting = lambda pair, *_: np.zeros(len(pair), bool)
                     account = RestEnergy(model, data, adapter)
                     E = [account.total]
                 elif k < a.torque_steps:
