@@ -20,6 +20,7 @@ pb = pytest.importorskip("pybullet")
 pybullet_data = pytest.importorskip("pybullet_data")
 pytestmark = pytest.mark.pybullet
 
+from engines._contacts.state import ENERGY_GAIN_RTOL  # noqa: E402
 from engines.pybullet import scenes  # noqa: E402
 from engines.pybullet.adapter import PybulletAdapter  # noqa: E402
 from engines.pybullet.robots import (  # noqa: E402
@@ -278,12 +279,24 @@ def test_every_hinge_turns_its_link_at_its_joint_speed(name):
 #: step within the bound when the feet are solved as one island). Before the
 #: joint axes were made unit: 1.34.
 REST_GAIN_RTOL = 0.02
+#: Over the whole second, the energy's largest rise above its running
+#: minimum, as a share of the ant's energy above the floor at the start: the
+#: contacts' own bound on an island's energy gain (ENERGY_GAIN_RTOL, 1e-3,
+#: the objects scenario's bound too). Measured at 10 ms: 0.51 J of 662 J
+#: (7.7e-4) with the feet solved together at rest (no joint at a limit:
+#: PybulletAdapter._rest_together); 1.31 J (2.0e-3) when the resting feet
+#: took the settled path one by one, each seeing the others' forces a step
+#: late in its a_ext (scripts/pybullet_robots.py ant).
+REST_RISE_RTOL = ENERGY_GAIN_RTOL
 
 
 def test_the_ant_rests_on_its_feet_without_energy_gain():
     """ant.xml from pybullet_data at its own 10 ms step, put down 0.5 mm above
     the floor, no torques, for 1 s: its energy (mechanical plus what the
-    contacts hold) falls overall and never rises in a step beyond
+    contacts hold) falls overall, rises above its running minimum by less
+    than REST_RISE_RTOL of the start (its four feet, links of one
+    multibody with no joint at a limit, solved together at rest too) and
+    never rises in a step beyond
     REST_GAIN_RTOL (scripts/pybullet_robots.py ant: 662.2 -> 652.9 J; at 1 ms
     and 0.2 ms the largest rise above the running minimum is 0.079 J and
     0.005 J)."""
@@ -310,15 +323,19 @@ def test_the_ant_rests_on_its_feet_without_energy_gain():
             return E, T + float(np.sum(ad.manager.W_el[ad.manager.active])), float(mass @ v[:, 2])
 
         E0, _, p0 = state()
-        start = E0
+        start = lowest = E0
+        rise = 0.0
         for _ in range(100):
             ad.step()
             E1, scale, p1 = state()
             allowed = 0.5 * dt * 9.81 * abs(p1 - p0) + REST_GAIN_RTOL * scale
             assert E1 - E0 <= allowed, (ad.time, E1 - E0, allowed)
             E0, p0 = E1, p1
+            lowest = min(lowest, E1)
+            rise = max(rise, E1 - lowest)
         assert ad.manager.active.sum() == 4  # on its four feet
         assert E1 < start
+        assert rise <= REST_RISE_RTOL * start, (rise, start)
     finally:
         pb.disconnect(c)
 

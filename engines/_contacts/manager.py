@@ -115,6 +115,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self._kg_of_pair = np.array([kidx.get(g, -1) for g in self._group_of], dtype=np.int64)
         self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
         self._coupling: tuple[np.ndarray, Callable] | None = None  # set_coupling
+        self._together: np.ndarray | None = None  # set_coupling: pairs solved together even at rest
         self._balance: IslandBalance | None = None  # set_energy_probe
         self._probe: Callable[[int], dict] | None = None
         self._probe_batch: Callable[[], Callable[[int], dict]] | None = None
@@ -514,6 +515,19 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             raise ValueError(f"blocks = {blocks!r} must be callable or None")
         self._coupling = (keys, blocks)
 
+    def set_together(self, together) -> None:
+        """together: (P,) bool, pairs whose connected contacts (set_coupling)
+        are solved as one island from now on even when all of them rest, where
+        resting contacts otherwise take the settled path one by one
+        (engines._contacts.islands.islands); None: none."""
+        if together is None:
+            self._together = None
+            return
+        t = np.asarray(together, dtype=bool)
+        if t.shape != (len(self.pairs),):
+            raise ValueError(f"together has shape {t.shape}; expected ({len(self.pairs)},)")
+        self._together = t
+
     def set_energy_probe(self, probe: Callable | None) -> None:
         """Check every island's energy over each step (engines._contacts.balance):
         probe(keys (b,) int) -> (T, U, q, m) (b,) each: kinetic [J] and gravitational
@@ -603,7 +617,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             return None
         act = self.active[pair]
         age_ok = self._resting(pair, t0, n, v, W)
-        lab = islands(pair, act, age_ok, keys)
+        lab = islands(pair, act, age_ok, keys, None if self._together is None else self._together[pair])
         counts = np.bincount(lab, minlength=pair.size)
         multi = np.where(counts[lab] > 1, lab, -1)
         self._rest_rows = age_ok
