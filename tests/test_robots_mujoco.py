@@ -60,11 +60,12 @@ def test_robot_model_runs_and_gains_no_energy_without_torques(name, torque_steps
     assert account.total < start and account.absorbed > 0.0  # the limits took energy out
 
 
-def _pressed_bar(integrator: str, torque: float):
+def _pressed_bar(integrator: str, torque: float, pushed: float = 0.0):
     """A rubber box bar (100 x 20 x 20 mm, 0.2 kg, edge radius 5 mm: its
     corners touch, solved together) on a hinge at one end, lying 1 mm above a steel floor, no
     gravity, dt = 10 ms, pressed down by a motor on during steps 10-19 with
-    ``torque`` [N m], then released: (adapter, warnings)."""
+    ``torque`` [N m] and a generalised force ``pushed`` [N m] on the hinge
+    (qfrc_applied) over the same steps, then released: (adapter, warnings)."""
     import warnings
 
     from engines.base import PairSpec
@@ -86,28 +87,33 @@ def _pressed_bar(integrator: str, torque: float):
         with installed(adapter):
             for i in range(40):
                 data.ctrl[0] = torque if 10 <= i < 20 else 0.0
+                data.qfrc_applied[0] = pushed if 10 <= i < 20 else 0.0
                 mujoco.mj_step(model, data)
     return adapter, [str(w.message) for w in caught]
 
 
 def test_a_link_found_deep_at_its_onset_is_flagged_and_warned():
-    """Never silent (issue 13, the MSF ant): a motor switched on inside a
-    step drives a link into the floor further than the contacts' free flight
-    puts it (their a_ext has the motor from this step on,
-    MujocoAdapter._actuation_change, but semi-implicit Euler moves the bar
-    by dt^2 a, the free flight by dt^2 a / 2: 1.5 against 0.75 mm toward
-    a 1 mm gap), and its corners begin already overlapping, holding elastic
-    energy no force worked for (measured under Euler: 0.48 mm, 1.4 mJ, 1.8
-    times the contacts' approach energy, COR 1.52; the resting ant's feet
-    0.2-0.4 mm, up to 3.4 mJ; the ant's ankle under RK4 26 mm, 111 J, COR
-    3.9, when the drives were seen a step late). Each such contact is
-    flagged in its outside_validity and warned once per pair."""
-    adapter, messages = _pressed_bar("Euler", 0.1)
+    """Never silent (issue 13, the MSF ant): a generalised force the user
+    applies to the hinge (qfrc_applied, 0.1 N m, not an actuator: the
+    contacts' a_ext sees it a step late) switched on inside a step drives
+    the link 1.5 mm toward the floor 1 mm below, where the contacts' free
+    flight (and their own gaps, which take the engine's gap beyond the
+    integrator's lead) do not put it, and its corners begin already
+    overlapping, holding elastic energy no force worked for (measured under
+    Euler: 0.48 mm, 1.4 mJ, 1.8 times the contacts' approach energy, COR
+    1.52; the ant's ankle under RK4 26 mm, 111 J, COR 3.9, when its drives
+    were seen a step late). Each such contact is flagged in its
+    outside_validity and warned once per pair. (The same push by the motor
+    is seen in its step, MujocoAdapter._actuation_change, and the bar's
+    own gaps keep Euler's dt^2 a / 2 lead out: no deep onset.)"""
+    adapter, messages = _pressed_bar("Euler", 0.0, 0.1)
     assert adapter.deep_onsets >= 1
     deep = [m for m in messages if "deep at its onset" in m]
     assert deep and len(deep) == len({m.split(":")[0] for m in deep})  # once per pair
     assert any(any("deep at its onset" in note for note in r.outside_validity) for r in adapter.records)
     assert not any("under RK4" in m for m in messages)
+    motor, _ = _pressed_bar("Euler", 0.1)  # the same push by its motor: 4 contacts found deep before both
+    assert motor.deep_onsets == 0
 
 
 def test_rk4_on_links_is_warned_once_naming_the_fix():
@@ -223,8 +229,9 @@ def test_a_link_under_rk4_bounces_with_the_reference_cor(dt):
 #: The MSF ant under its own RK4 at 10 ms hopped to 6 m under the seeded
 #: torques when each step's new torque reached its contacts' free flight one
 #: step late. Its torso's highest point over the first 150 steps: measured
-#: 1.17 m with the drive seen in its step (also over 1,000 steps; Euler
-#: 1.13 m), 4.3 m without (a contact found deep at step 105, then the hop).
+#: 0.855 m with the drive seen in its step and the links' own gaps (1.17 m
+#: with the drive alone; 1.31 m over 1,000 steps), 4.3 m without either (a
+#: contact found deep at step 105, then the hop).
 ANT_RK4_Z_MAX = 1.5
 
 

@@ -614,6 +614,18 @@ class MujocoAdapter(EngineAdapter):
         #: island contacts are checked for an onset found deep (_check_deep_onsets)
         self._link_pairs = np.array([any(not self._free_body[b] and int(model.body_weldid[b]) != 0
                                          for b in (p.body1, p.body2)) for p in self._pairs], dtype=bool)
+        # the manager's own gaps (own_gap, as for free bodies above) also for a link of a chain on a fixed
+        # body (a robot's foot on the floor). Its gap, read from the
+        # engine, leads the integrated one by the step's velocity change (Euler: dt |dv| / 2; RK4: the
+        # timing correction's position change, half in each of its two steps), and a foot chattering at
+        # rest began each touch-down that deep (the MSF ant at 10 ms, 1,000 steps of torques then 1,000
+        # at rest: 53 contacts found deep under RK4, 95 under Euler; with its own gaps 6 and 6, RK4's
+        # 0.3-3 um deep, and no energy rise at rest; scripts/ant_integrators.py --deep). A larger
+        # difference (a force the contact did not see: a joint limit's, a user's qfrc_applied) still
+        # takes the engine's gap.
+        for q in self._pairs:
+            if q.fixed2 and not q.fixed1 and self._link_pairs[q.index]:
+                self.manager.own_gap[q.index] = True
         self._required = np.zeros(len(self._pairs), bool)  # _compute_compiled's scratch
         self._fk_bufs = None  # the free group's kinematics arrays (_compute_compiled)
         self._any_link = bool(self._link_pairs.any())  # _check_deep_onsets has nothing to look at without one
@@ -1066,11 +1078,10 @@ class MujocoAdapter(EngineAdapter):
         step late, as under Euler. The drives no longer do
         (:meth:`_actuation_change`): their lag made the MSF ant (pybullet_data
         ant.xml, RK4 at its own 10 ms, seeded torques; scripts/ant_integrators.py)
-        hop to 6.0 m with an ankle found 26 mm inside the floor (COR 3.9); it
-        now stays below 1.17 m (Euler 1.14 m). Left (1,000 steps of torques,
-        then 1,000 at rest): 53 contacts found deep at their onset under RK4
-        (4 under the torques, the others feet settling at rest, 0.03-0.4 mm),
-        95 under Euler. Free bodies under RK4 are as under Euler
+        hop to 6.0 m with an ankle found 26 mm inside the floor (COR 3.9); with
+        them and the links' own gaps it stays below 1.31 m, and over 1,000
+        steps of torques then 1,000 at rest 6 contacts are found deep at their
+        onset (0.3-3 um; Euler 6). Free bodies under RK4 are as under Euler
         (tests/test_mujoco_hook.py). Checked again when the integrator changes."""
         integ = int(self.model.opt.integrator)
         if integ == self._rk4_checked:
@@ -1084,8 +1095,7 @@ class MujocoAdapter(EngineAdapter):
                       "the contacts' step-averaged force is held through RK4's four stages, and joint-limit and "
                       "other constraint forces acting inside a step reach the contacts' free flight one step late "
                       "(as under Euler and implicitfast), so a link they move is met where the contact did not "
-                      "integrate it (the MSF ant at 10 ms: contacts found up to 0.4 mm deep at their onset, "
-                      "flagged); take a smaller timestep",
+                      "integrate it (found deep at its onset: flagged); take a smaller timestep",
                       RuntimeWarning, stacklevel=3)
 
     def _check_deep_onsets(self, t0: float) -> None:
