@@ -30,10 +30,12 @@ ended_by, and calls again); the island's state is then the one at that
 instant, its time t_loc[i]. The caller (engines._contacts.island_compiled)
 sets up y and writes the state back as step_island does.
 
-The moving contact point (the lever, state.LEVER_DOC) is frozen over the
-step in an island on both paths (step_island takes no lever): the rows get
-a zero lever row L0. Allocates nothing (scratch from the caller), as
-engines._kernel.
+The moving contact point (the lever, state.LEVER_DOC): each row's own
+terms as a row alone (engines._kernel.rhs and free_flight with the row's
+Lr[r] (NL,); a free row's point moves while it overlaps, v += g (max(x1, 0)
+- max(x0, 0)) after each RK4 step, as in free flight), the
+cross terms between rows left out, as step_island. Allocates nothing
+(scratch from the caller), as engines._kernel.
 """
 
 from __future__ import annotations
@@ -41,7 +43,7 @@ from __future__ import annotations
 import math
 
 from . import _kernel as K
-from ._kernel import LC_FZ, NY, PI, VC, WEL, WVI, X, V, P, ST_DONE, ST_ENDED, ST_ONSET, END_FORCE, END_OVERLAP, jit
+from ._kernel import G, L_ON, LC_FZ, NY, PI, VC, WEL, WVI, X, V, P, ST_DONE, ST_ENDED, ST_ONSET, END_FORCE, END_OVERLAP, jit
 
 # island status (ist)
 IS_RUN, IS_DONE, IS_STOP, IS_OVER = 0, 1, 2, 3
@@ -52,7 +54,7 @@ EV_NONE, EV_END, EV_ON = 0, 1, 2
 
 
 @jit
-def _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, dy, F,
+def _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, dy, F,
          buf, want):
     """dy/dt of the island's rows r0..r1-1 (step_island's _Island.rhs):
     rows in contact by engines._kernel.rhs, the others moving freely
@@ -61,8 +63,8 @@ def _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, 
     for r in range(r0, r1):
         if in_c[r]:
             kr = kg[r]
-            Fn, Ft = K.rhs(codes[kr], LC[kr], oc, pairs[r], n[r], T[r], W[r], Wc[r], a[r], paper[r], L0, y[r], dy[r],
-                           buf, want)
+            Fn, Ft = K.rhs(codes[kr], LC[kr], oc, pairs[r], n[r], T[r], W[r], Wc[r], a[r], paper[r], Lr[r], y[r],
+                           dy[r], buf, want)
         else:
             for j in range(NY):
                 dy[r, j] = 0.0
@@ -84,33 +86,38 @@ def _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, 
 
 
 @jit
-def _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, h, out,
+def _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, h, out,
          work, F, buf, k1_ready):
     """One classical RK4 step of the island of length h from y into out (rows
     r0..r1-1); F[r] = (F_n, |F_t|) at y unless k1_ready (work[0] then holds
     the slope at y from an earlier call from the same y). work (5, k, NY)."""
     k1, k2, k3, k4, yt = work[0], work[1], work[2], work[3], work[4]
     if not k1_ready:
-        _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, k1, F,
+        _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, k1, F,
              buf, True)
     for r in range(r0, r1):
         for j in range(NY):
             yt[r, j] = y[r, j] + 0.5 * h * k1[r, j]
-    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, yt, k2, F,
+    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, yt, k2, F,
          buf, False)
     for r in range(r0, r1):
         for j in range(NY):
             yt[r, j] = y[r, j] + 0.5 * h * k2[r, j]
-    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, yt, k3, F,
+    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, yt, k3, F,
          buf, False)
     for r in range(r0, r1):
         for j in range(NY):
             yt[r, j] = y[r, j] + h * k3[r, j]
-    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, yt, k4, F,
+    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, yt, k4, F,
          buf, False)
     for r in range(r0, r1):
         for j in range(NY):
             out[r, j] = y[r, j] + h / 6.0 * (k1[r, j] + 2.0 * k2[r, j] + 2.0 * k3[r, j] + k4[r, j])
+    for r in range(r0, r1):  # a free row's moving point, as free flight (step_island's _Island.rk4)
+        if not in_c[r] and Lr[r, L_ON] != 0.0:
+            dm = max(out[r, X], 0.0) - max(y[r, X], 0.0)
+            for i in range(3):
+                out[r, V + i] += y[r, G + i] * dm
     for r in range(r0, r1):  # the Coulomb slip of the rows in contact (step_island's _Island.rk4)
         if in_c[r]:
             kr = kg[r]
@@ -134,7 +141,7 @@ def _g_end(code, lc, oc, p, Y, r, n, xs, Bs):
 
 
 @jit
-def _root(kind, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c,
+def _root(kind, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c,
           y, h, lo, hi, g_lo, g_hi, xs, Bs, tmp, work, F, buf, root_iter, root_tol):
     """Illinois regula falsi for th in [lo, hi], g(lo) > 0 >= g(hi), g of row r at
     the island state rk4(y, th h) (engines._contacts.reference._find_root for
@@ -148,7 +155,7 @@ def _root(kind, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes
         th, at_hi = K.illinois_next(lo, hi, g_lo, g_hi)
         if at_hi:
             return hi
-        _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y,
+        _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y,
              th * h, tmp, work, F, buf, True)
         if kind == 0:
             gt = _xd(tmp, r, n)
@@ -183,7 +190,7 @@ def _stiff_step(r0, r1, pairs, n, W, kg, codes, LC, oc, in_c, y, buf, substeps):
 
 
 @jit
-def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq,
+def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq,
             Wcpq, t0, dt, hp, y, in_c, t_loc, phase, nseg, status, ended_by, turned, fl, ints, buf, work, Y1, Yt, tmp,
             F, sc):
     """Move island i on from t_loc[i] (module docstring); returns IS_DONE,
@@ -227,17 +234,17 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
             for r in range(r0, r1):
                 for j in range(NY):
                     tmp[r, j] = y[r, j]
-                tc = K.free_flight(n[r], a[r], L0, tmp[r], rem)
+                tc = K.free_flight(n[r], a[r], Lr[r], tmp[r], rem)
                 sc[r, SC_LO] = tc
                 if tc < t_first:
                     t_first = tc
             if not math.isfinite(t_first):
                 for r in range(r0, r1):
-                    K.free_flight(n[r], a[r], L0, y[r], rem)
+                    K.free_flight(n[r], a[r], Lr[r], y[r], rem)
                 t_loc[i] = dt
                 return IS_DONE
             for r in range(r0, r1):
-                K.free_flight(n[r], a[r], L0, y[r], t_first)
+                K.free_flight(n[r], a[r], Lr[r], y[r], t_first)
             t_loc[i] += t_first
             for r in range(r0, r1):
                 if sc[r, SC_LO] <= t_first:
@@ -251,7 +258,7 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
         nsub = max(1, int(math.ceil(rem / h_isl - 1e-9)))
         h = rem / nsub
         for _s in range(nsub):
-            _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, h,
+            _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, h,
                  Y1, work, F, buf, False)
             ints[2] += 1
             for r in range(r0, r1):
@@ -275,9 +282,9 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
                 p = pairs[r]
                 xd0, xd1 = sc[r, SC_XD0], sc[r, SC_XD1]
                 if in_c[r] and not turned[p] and xd0 > 0 and xd1 <= 0:
-                    th = _root(0, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq,
+                    th = _root(0, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq,
                                Wpq, Wcpq, in_c, y, h, 0.0, 1.0, xd0, xd1, 1.0, 1.0, tmp, work, F, buf, riter, rtol)
-                    _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq,
+                    _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq,
                          in_c, y, th * h, Yt, work, F, buf, True)
                     turned[p] = True
                     fl[K.F_TAU1, p] = t0 + t_loc[i] + th * h - fl[K.F_TONSET, p]
@@ -325,7 +332,7 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
                 code, lc = codes[kr], LC[kr]
                 lo = sc[r, SC_LO]
                 if lo > 0:
-                    _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq,
+                    _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq,
                          in_c, y, lo * h, Yt, work, F, buf, True)
                     Ylo = Yt
                 else:
@@ -337,7 +344,7 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
                 if 1e-300 > g_lo:  # Python's max(g, 1e-300)
                     g_lo = 1e-300
                 g_hi = _g_end(code, lc, oc, p, Y1, r, n, xs, Bs)
-                th = _root(1, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq,
+                th = _root(1, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq,
                            Wcpq, in_c, y, h, lo, 1.0, g_lo, g_hi, xs, Bs, tmp, work, F, buf, riter, rtol)
                 sc[r, SC_TH] = th
                 if th < th_star:
@@ -345,13 +352,13 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
             for r in range(r0, r1):
                 if sc[r, SC_EV] != EV_ON:
                     continue
-                th = _root(2, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq,
+                th = _root(2, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq,
                            Wcpq, in_c, y, h, 0.0, 1.0, -sc[r, SC_G0], -sc[r, SC_G1], 1.0, 1.0, tmp, work, F, buf,
                            riter, rtol)
                 sc[r, SC_TH] = th
                 if th < th_star:
                     th_star = th
-            _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y,
+            _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y,
                  th_star * h, Yt, work, F, buf, True)
             t_loc[i] = t_loc[i] + th_star * h
             for r in range(r0, r1):
@@ -371,7 +378,7 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
 
 
 @jit
-def advance_islands(cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc, cp,
+def advance_islands(cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp,
                     cq, Wpq, Wcpq, t0, dt, hp, y, in_c, t_loc, phase, nseg, ist, status, ended_by, turned, fl, ints,
                     buf, work, Y1, Yt, tmp, F, sc):
     """Move every island whose ist is IS_RUN (module docstring); ist[i]
@@ -382,7 +389,7 @@ def advance_islands(cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a,
     for i in range(io.shape[0] - 1):
         if ist[i] != IS_RUN:
             continue
-        st = _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, paper, L0, kg, codes, LC, oc,
+        st = _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc,
                      cp, cq, Wpq, Wcpq, t0, dt, hp, y, in_c, t_loc, phase, nseg, status, ended_by, turned, fl, ints,
                      buf, work, Y1, Yt, tmp, F, sc)
         ist[i] = st

@@ -234,7 +234,7 @@ def rhs(code, lc, oc, p, n, T, W, Wc, a, paper, Lr, y, dy, buf, want_ft):
         # the contact point moves with the overlap: v' = W(d) f + a + d' g, g' = (W01^T + d W11) f,
         # W(d) = W + d (W01 + W01^T) + d^2 W11, d = max(x, 0) - max(x_ref, 0); PD' = d f (LEVER_DOC)
         d = max(y[X], 0.0) - Lr[L_XREF]
-        dd = xd if y[X] > 0.0 else 0.0
+        dd = xd  # in contact: d' = x' (at x < 0 only within round-off of the onset or past the end; _Batch.rhs)
         for i in range(3):
             A = Lr[L_W01 + 3 * i] * f0 + Lr[L_W01 + 3 * i + 1] * f1 + Lr[L_W01 + 3 * i + 2] * f2
             B = Lr[L_W01 + i] * f0 + Lr[L_W01 + 3 + i] * f1 + Lr[L_W01 + 6 + i] * f2

@@ -5,7 +5,8 @@ engines._contacts.island_compiled) against the numpy step_island
 Each scene runs twice, ``manager.island_compiled`` True and False (the
 numpy reference): Newton's cradles of 3 and 5 steel balls at dt = 1e-5 ...
 2e-3 s, a ball resting on a plate struck by another, an oblique island of
-two laws with friction, whole runs compared step by step; and an 8-sphere
+two laws with friction, deep oblique bead impacts with their moving contact
+points, whole runs compared step by step; and an 8-sphere
 pile in a box (several islands a step, three laws), where both paths take
 every step from the same manager state (a pile amplifies round-off from
 step to step, as any chaotic system: whole runs part after ~30 steps at
@@ -188,6 +189,19 @@ def test_oblique_island_of_two_laws(engine):
                      [[V0, 0, 0], [0, 0, 0], [0, 0, 0]], [(1, 0), (2, 1)], laws, 0.0, dt)
 
     _compare(make, 10, 2)
+
+
+@pytest.mark.parametrize("engine", [pytest.param("mujoco", marks=pytest.mark.mujoco),
+                                    pytest.param("pybullet", marks=pytest.mark.pybullet)])
+def test_deep_oblique_island(engine):
+    """test_islands.test_deep_oblique_island's coupled scene (two glass beads
+    at 50 m/s, 45 degrees on polyurethane, x_max/R = 0.5, striking each other
+    during their plate contacts): the moving contact points (the lever) of
+    the island's rows, both paths."""
+    _engine_available(engine)
+    from test_islands import bead_scene
+
+    _compare(lambda: bead_scene(engine, 2, vy=2.0), 6, 3)
 
 
 def _pile_module():

@@ -212,7 +212,13 @@ def test_dense_jet_particle_particle_records():
     assert alone >= 3
     impacts = [r for r in rows if r["kind"] == "impact"]
     assert any(r["deflected"] for r in impacts)  # plate impacts after a particle-particle contact
-    assert all(r["cor_n"] <= 1.0 for r in impacts)
+    # no plate impact leaves faster than it came, except one struck by a neighbour while on the plate:
+    # that one takes the neighbour's energy (measured: bead 13's plate contact, 4.3760-4.3992 ms, struck
+    # by bead 15 at 4.3876 ms, cor_n 1.001; its island's energy, checked above, does not rise)
+    struck = [r for r in impacts if any(r["t_onset"] < s[0] < r["t_onset"] + r["tau"] for s in spans[r["particle"]]
+                                        if s[0] != r["t_onset"])]
+    assert all(r["cor_n"] <= 1.0 for r in impacts if r not in struck), [r for r in impacts if r not in struck]
+    assert len(struck) <= 2
 
 
 @pytest.mark.pybullet

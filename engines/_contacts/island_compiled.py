@@ -18,7 +18,7 @@ from .. import _kernel as K
 from ..contract import as_array
 from .compiled import _KCST
 from .islands import write_back
-from .state import MAX_SEGMENTS, NY, SUBSTEPS_PER_CONTACT, _Rows, _tangent_basis, initial_state
+from .state import MAX_SEGMENTS, NY, SUBSTEPS_PER_CONTACT, _Rows, _tangent_basis, initial_state, lever_start
 
 
 def coupled_rows(keys) -> tuple[np.ndarray, np.ndarray]:
@@ -77,15 +77,18 @@ def island_blocks(mgr, pair, multi, a):
     return R, io, cio, cp, cq, Wpq, Wcpq, a_R
 
 
-def step_islands(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, io, cio, cp, cq, Wpq, Wcpq, resting):
+def step_islands(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, io, cio, cp, cq, Wpq, Wcpq, resting, L=None):
     """step_island for every island of rows p (k,) (island i: rows
     io[i]..io[i+1]-1, its coupling entries cio[i]..cio[i+1]-1 of cp, cq (b,)
     (row indices), Wpq, Wcpq (b, 3, 3)), compiled; every row's law has a
-    kernel code. Returns the impulses (k, 3) [N s]."""
+    kernel code; L (k, NL) or None: the rows' moving contact points
+    (state.LEVER_DOC). Returns the impulses (k, 3) [N s]."""
     dt = mgr.dt
     k = p.size
     m = io.size - 1
     y = initial_state(mgr, p, x_eng, n, v, vc, resting)
+    lever_start(y, L)
+    Lr = np.zeros((k, K.NL)) if L is None else np.ascontiguousarray(L, dtype=float)
     t1, t2 = _tangent_basis(n)
     T = np.ascontiguousarray(np.stack([t1, t2], axis=1))
     n, W, Wc, a = (np.ascontiguousarray(q, dtype=float) for q in (n, W, Wc, a))
@@ -105,12 +108,11 @@ def step_islands(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, io, cio, cp, cq, W
     Y1, Yt, tmp = np.empty((k, NY)), np.empty((k, NY)), np.empty((k, NY))
     F = np.zeros((k, 2))
     sc = np.zeros((k, IK.NSC))
-    L0 = np.zeros(K.NL)
-    rows = _Rows(n, W, a)
+    rows = _Rows(n, W, a, L)
     isl_of = np.repeat(np.arange(m), np.diff(io))
     while True:
         stopped = IK.advance_islands(_KCST, float(SUBSTEPS_PER_CONTACT), MAX_SEGMENTS, io, cio, p, n, T, W, Wc, a,
-                                     paper, L0, kg, mgr._kcodes, mgr._kLC, mgr._oc, cp, cq, Wpq, Wcpq, t0, dt, mgr.h,
+                                     paper, Lr, kg, mgr._kcodes, mgr._kLC, mgr._oc, cp, cq, Wpq, Wcpq, t0, dt, mgr.h,
                                      y, in_c, t_loc, phase, nseg, ist, status, ended_by, mgr.turned, mgr._fl, ints,
                                      buf, work, Y1, Yt, tmp, F, sc)
         if not stopped:

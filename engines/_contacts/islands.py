@@ -47,9 +47,9 @@ import numpy as np
 
 from .reference import _Batch, _find_root
 from .state import (
-    initial_state,
-    _P, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, MAX_SEGMENTS, NY, SUBSTEPS_PER_CONTACT, _dot, _Rows,
-    _tangent_basis,
+    initial_state, lever_start,
+    _G, _P, _PD, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, MAX_SEGMENTS, NY, SUBSTEPS_PER_CONTACT, _dot, _Rows,
+    L_ON, _cross, _tangent_basis,
 )
 
 
@@ -147,19 +147,23 @@ def islands(pair, active, age_ok, keys, together=None):
 
 
 class _Island:
-    """The rows of one island over one engine step: per-law batches and the
-    coupling blocks."""
+    """The rows of one island over one engine step: per-law batches (with
+    the rows' moving contact points L (k, NL) or None, state.LEVER_DOC) and
+    the coupling blocks."""
 
-    def __init__(self, mgr, p, n, W, Wc, a, cp, cq, Wpq, Wcpq):
+    def __init__(self, mgr, p, n, W, Wc, a, cp, cq, Wpq, Wcpq, L=None):
         self.mgr, self.p, self.n, self.W, self.a = mgr, p, n, W, a
         self.k = p.size
         self.cp, self.cq, self.Wpq, self.Wcpq = cp, cq, Wpq, Wcpq
+        # rows whose point moves while they are not in contact (free flight's v += g d, d' = x' at x > 0)
+        self.lev = None if L is None else L[:, L_ON] != 0.0
         t1, t2 = _tangent_basis(n)
         self.groups = []  # (law group id, law, row indices, _Batch)
         gid = mgr._group_of[p]
         for g in np.unique(gid):
             idx = np.flatnonzero(gid == g)
-            b = _Batch(mgr._groups[g], n[idx], t1[idx], t2[idx], W[idx], Wc[idx], a[idx], mgr._paper[p[idx]])
+            b = _Batch(mgr._groups[g], n[idx], t1[idx], t2[idx], W[idx], Wc[idx], a[idx], mgr._paper[p[idx]],
+                       L=None if L is None else L[idx])
             self.groups.append((g, mgr._groups[g], idx, b))
         self.refresh_onset()
 
@@ -194,7 +198,8 @@ class _Island:
         return dy, Fn, Ft
 
     def rk4(self, y, h, in_c):
-        """One RK4 step of length h [s] of the island, then the Coulomb slip of
+        """One RK4 step of length h [s] of the island, the free rows' moving
+        contact points as in free flight, then the Coulomb slip of
         the tangential springs of the rows in contact (_Batch.slip, as the
         rows' own path: without it the spring displacement s of a sliding
         row kept growing past mu F_n / k, so its force stayed on the cap
@@ -204,6 +209,9 @@ class _Island:
         k3, _, _ = self.rhs(y + 0.5 * h * k2, in_c)
         k4, _, _ = self.rhs(y + h * k3, in_c)
         y1 = y + h / 6.0 * (k1 + 2.0 * k2 + 2.0 * k3 + k4)
+        if self.lev is not None:  # a free row's point moves while it overlaps: v += g (max(x1, 0) - max(x0, 0)),
+            mv = ~in_c & self.lev  # exactly as free flight (ContactManager._free_flight; LEVER_DOC)
+            y1[mv, _V] += y[mv, _G] * (np.maximum(y1[mv, _X], 0.0) - np.maximum(y[mv, _X], 0.0))[:, None]
         for _g, _law, idx, b in self.groups:
             on = in_c[idx]
             if np.any(on):
@@ -226,7 +234,7 @@ class _Island:
         return out
 
 
-def step_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq, resting):
+def step_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq, resting, L=None):
     """Integrate the rows of one island over the engine step; returns the
     impulses to apply (k, 3) [N s] (the manager divides by dt). Arguments as
     ContactManager._step_group for the island's rows (normals unit), plus the
@@ -234,13 +242,18 @@ def step_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq, 
     rows cq (b,), and Wc_pq (b, 3, 3) on their centre-of-mass velocity;
     resting (k,): the rows in a resting contact (ContactManager._resting),
     whose internal x relaxes toward the engine's (a contact being hit keeps
-    its own x: the engine's leads it in an impact)."""
+    its own x: the engine's leads it in an impact); L (k, NL) or None: the
+    rows' moving contact points (state.LEVER_DOC), each row's own terms as a
+    row alone (_Batch.rhs, free flight's v += g d); the lever's cross terms
+    between rows (J_p1 M^-1 J_q^T f_q: the push of row q's force through row
+    p's moved point, and q's moved point in W_pq) are left out."""
     dt = mgr.dt
     k = p.size
     act = mgr.active[p].copy()
     y = initial_state(mgr, p, x_eng, n, v, vc, resting)
-    isl = _Island(mgr, p, n, W, Wc, a, cp, cq, Wpq, Wcpq)
-    rows = _Rows(n, W, a)
+    lever_start(y, L)
+    isl = _Island(mgr, p, n, W, Wc, a, cp, cq, Wpq, Wcpq, L)
+    rows = _Rows(n, W, a, L)
     in_c = act.copy()
     t_loc = 0.0
     for _ in range(MAX_SEGMENTS):
@@ -371,6 +384,7 @@ def write_back(mgr, p, n, W, Wc, y, in_c, t0, cp, cq, Wpq, Wcpq) -> np.ndarray:
         mgr.outside[p[idx]] |= mgr._groups[g].outside(np.maximum(y[idx, _X], 0.0)) & in_c[idx]
     J = y[:, _PI] / dt - 0.5 * y[:, _P] if mgr.timing_correction else np.zeros((k, 3))
     mgr.settled[p] = False
+    mgr.couple[p] = 0.5 * _cross(n, y[:, _PD])  # n x PD / 2 of the moving contact points (state.LEVER_DOC)
     if mgr.history:
         Pn = np.einsum("ki,ki->k", y[:, _P], n) / dt
         for r in np.flatnonzero(np.any(y[:, _P] != 0.0, axis=1)):

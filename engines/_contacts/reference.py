@@ -23,8 +23,8 @@ import numpy as np
 from msf_contact.laws import ForceLaw
 
 from .state import (
-    initial_state,
-    _G, _P, _PD, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, L_G0, L_ON, L_W01, L_W11, L_XREF, MAX_SEGMENTS, NY, ROOT_ITER, ROOT_TOL,
+    initial_state, lever_start,
+    _G, _P, _PD, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, L_ON, L_W01, L_W11, L_XREF, MAX_SEGMENTS, NY, ROOT_ITER, ROOT_TOL,
     SETTLE_AFTER_DURATIONS, SETTLED_FD_REL, SETTLED_NEWTON_MAX, SETTLED_SPEED_RATIO, SETTLED_VTOL, _dot,
     _msf_inline, _tangent_basis,
 )
@@ -117,13 +117,17 @@ class _Batch:
         dy[:, _X] = xd
         if self.lever:
             # the contact point moves with the overlap (state.LEVER_DOC): v' = W(d) f + a + x' g,
-            # g' = (W01^T + d W11) f, PD' = d f, d = max(x, 0) - max(x_ref, 0), d' = x' while x > 0
+            # g' = (W01^T + d W11) f, PD' = d f, d = max(x, 0) - max(x_ref, 0), d' = x' in contact:
+            # a row in contact is at x < 0 only within round-off of its onset (+-1e-22 m from the
+            # onset's root) or in RK4 stages past its end (cut at the end's root); taking d' = x' there
+            # too keeps the slope continuous (switched off at x <= 0, the first stage's d' hung on
+            # the sign of that round-off: the compiled and numpy islands differed by 6e-6 in a pile step)
             on = self.on[:, None]
             d = (np.maximum(y[:, _X], 0.0) - self.L[:, L_XREF])[:, None]
             A = np.einsum("kij,kj->ki", self.W01, f)
             B = np.einsum("kji,kj->ki", self.W01, f)
             C = np.einsum("kij,kj->ki", self.W11, f)
-            ex = d * (A + B + d * C) + np.where(y[:, _X] > 0.0, xd, 0.0)[:, None] * y[:, _G]
+            ex = d * (A + B + d * C) + xd[:, None] * y[:, _G]
             Wf = np.einsum("kij,kj->ki", self.W, f)
             dy[:, _V] = np.where(on, Wf + ex + self.a, Wf + self.a)
             dy[:, _G] = np.where(on, B + d * C, 0.0)
@@ -247,11 +251,7 @@ class NumpyPath:
         settle = act & ((t0 - self.t_onset[p]) > SETTLE_AFTER_DURATIONS * self.tau_est[p])
         y = initial_state(self, p, x_eng, n, v, vc, settle)
         x0 = y[:, _X]
-        if L is not None:
-            y[:, _G] = L[:, L_G0:L_G0 + 3]
-            # v_rel at the internal overlap's point, not the engine's (state.LEVER_DOC)
-            on = L[:, L_ON] != 0.0
-            y[on, _V] += y[on, _G] * (np.maximum(x0[on], 0.0) - L[on, L_XREF])[:, None]
+        lever_start(y, L)  # v_rel at the internal overlap's point, not the engine's (state.LEVER_DOC)
         onset = self._onset[g]
         if onset:
             batch.onset = {key: arr[self._pos[p]] for key, arr in onset.items()}

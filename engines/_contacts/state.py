@@ -135,7 +135,11 @@ bodies' orientation change inside the step (a sphere's contact point does
 not depend on it), the normal's turn (sphere-sphere: n follows c1 - c2;
 second order for the impacts of the acceptance, a plane keeps n), the
 coupling of W_com (J_com M^-1 J1^T = 0 for free bodies) and the settled
-path (a resting contact's d over a step is ~0)."""
+path (a resting contact's d over a step is ~0). In an island
+(engines._contacts.islands) every row moves its own point by these
+formulas; the cross terms through another row's moved point (J_p1 M^-1
+J_q^T f_q in v_p' and g_p', and d_q in W_pq) are left out: they are
+O(d) times the other rows' forces, zero where those carry none."""
 
 
 def effective_inverse_inertia_free(m1, I1_world, r1, m2, I2_world, r2) -> np.ndarray:
@@ -262,11 +266,15 @@ def _msf_inline(law: ForceLaw) -> bool:
 
 class _Rows:
     """The rows' normals, inverse inertias and external accelerations for
-    :meth:`ContactManager._begin` on the compiled path (the part of _Batch it reads)."""
+    :meth:`ContactManager._begin` on the compiled path (the part of _Batch it
+    reads), and for the islands' free flight (ContactManager._free_flight)
+    the rows' moving contact points: L (k, NL) or None (LEVER_DOC)."""
 
-    def __init__(self, n, W, a):
+    def __init__(self, n, W, a, L=None):
         self.n, self.W, self.a = n, W, a
         self.onset: dict = {}
+        self.on = None if L is None else L[:, L_ON] != 0.0
+        self.lever = self.on is not None and bool(np.any(self.on))
 
 
 def _pc(law, x_m, o1):
@@ -334,3 +342,18 @@ def initial_state(mgr, p, x_eng, n, v, vc, resting) -> np.ndarray:
     y[:, _S] = np.where((lt > 0)[:, None], s_t * (ls / np.where(lt > 0, lt, 1.0))[:, None], 0.0)
     y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT] = mgr.W_el[p], mgr.W_visc[p], mgr.Q_t[p], mgr.W_t[p]
     return y
+
+
+def lever_start(y, L) -> None:
+    """The moving contact point's start (LEVER_DOC), in place on the
+    step-start state y (k, NY) from initial_state: g = g0, and v_rel moved
+    from the engine's point (overlap x_ref) to the internal overlap's point,
+    v += g0 (max(x, 0) - x_ref) for the rows with a lever. L (k, NL) or None
+    (every point frozen: nothing to do). Shared by the numpy path
+    (reference.NumpyPath._step_group), step_island and the compiled islands
+    (the rows' compiled kernel does the same in engines._kernel.prelude)."""
+    if L is None:
+        return
+    y[:, _G] = L[:, L_G0:L_G0 + 3]
+    on = L[:, L_ON] != 0.0
+    y[on, _V] += y[on, _G] * (np.maximum(y[on, _X], 0.0) - L[on, L_XREF])[:, None]
