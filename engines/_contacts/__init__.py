@@ -96,7 +96,8 @@ spin_out, W_diss_t within 0.02 % of the reference, docs/engines.md).
 The contacts of an island move their points as a row alone does (each
 row's own terms; the cross terms of one row's moved point in another's
 coupling, J_p1 M^-1 J_q^T, are left out: they vanish with the other rows'
-forces). Known limits: without ``lever`` (links of articulated bodies) W is
+forces; a row off its body's centre keeps its point frozen there,
+islands.island_lever). Known limits: without ``lever`` (links of articulated bodies) W is
 frozen at the step-start geometry (lever arm R, an O(x_max/R) difference in
 spin and cor_t); the normal's turn within a step (sphere on sphere) and the
 settled path keep the step-start point. One contact per pair (smooth convex

@@ -49,7 +49,7 @@ from .reference import _Batch, _find_root
 from .state import (
     initial_state, lever_start,
     _G, _P, _PD, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, MAX_SEGMENTS, NY, SUBSTEPS_PER_CONTACT, _dot, _Rows,
-    L_ON, _cross, _tangent_basis,
+    CENTRED_RTOL, L_ON, L_W01, L_W11, _cross, _tangent_basis,
 )
 
 
@@ -97,6 +97,34 @@ def push_reach(keys, pair, x, v_rel, dt: float, factor: float) -> np.ndarray:
         on = kk >= 0
         out[on] = np.maximum(out[on], factor * dt * speed[kk[on]] + TOUCH_TOL)
     return out
+
+
+def island_lever(L, n, W):
+    """The moving contact points (state.LEVER_DOC) the island rows take: L
+    (k, NL) or None as the adapter gave it (row by row), n (k, 3), W (k, 3, 3);
+    returns L with L_ON cleared for the off-centre rows (a copy; None stays).
+
+    A row's lever terms carry the turn of its bodies under its own force
+    only; the other rows' share (the cross terms J_p1 M^-1 J_q^T f_q) is left
+    out. For a sphere the normal force passes through the centre and turns
+    nothing (W01^T n = 0: only the tangential force turns it, the lever's own
+    effect); a contact off its body's centre (a side's two ends, a box's
+    corners) is turned by its normal force, which the island's other rows
+    counter (a cylinder lying flat: the two ends' torques cancel), so such a
+    row keeps its point frozen (measured: with it moving, pybullet's lying
+    cylinder's COR 0.676119 against the line law's 0.676106, 2e-5; frozen
+    1e-6). Off-centre: |W01^T n| > CENTRED_RTOL sqrt(|W11| n.W.n), the lever
+    arm's share across n against the body's radius of gyration."""
+    if L is None:
+        return None
+    k = L.shape[0]
+    W01 = L[:, L_W01:L_W01 + 9].reshape(k, 3, 3)
+    W11 = L[:, L_W11:L_W11 + 9].reshape(k, 3, 3)
+    turn = np.linalg.norm(np.einsum("kji,kj->ki", W01, n), axis=1)
+    scale = np.sqrt(np.linalg.norm(W11, axis=(1, 2)) * np.einsum("ki,kij,kj->k", n, W, n))
+    L = L.copy()
+    L[turn > CENTRED_RTOL * scale, L_ON] = 0.0
+    return L
 
 
 def islands(pair, active, age_ok, keys, together=None):

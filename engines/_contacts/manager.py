@@ -22,7 +22,7 @@ from .records import Records
 from .reference import NumpyPath
 from .balance import IslandBalance
 from .island_compiled import island_blocks, step_islands
-from .islands import TOUCH_TOL, islands, step_island
+from .islands import TOUCH_TOL, island_lever, islands, step_island
 from .state import (
     L_G0, L_ON, L_W01, L_W11, L_XREF, NL, NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES,
     _cross, _dot, _name,
@@ -667,6 +667,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             force[alone] = out.force
         keys_all = self._coupling[0]
         R, io, cio, cp, cq, Wpq, Wcpq, a_R = island_blocks(self, pair, multi, a)
+        L = None if L is None else island_lever(L[R], n[R], W[R])  # by R's order from here
         pp_all = pair[R]
         info["island_rows"] += int(R.size)
         self.in_island[pp_all] = True
@@ -692,13 +693,14 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             r = R[rows]
             P = step_islands(self, pair[r], x[r], n[r], v[r], vc[r], W[r], Wc[r], a_R[rows], t0, info, io_k, cio_k,
                              remap[cp[ent]], remap[cq[ent]], Wpq[ent], Wcpq[ent], self._rest_rows[r],
-                             None if L is None else L[r])
+                             None if L is None else L[rows])
             force[r] = P / self.dt
         for i in np.flatnonzero(~kern):  # the numpy reference, island by island
             r = R[io[i]:io[i + 1]]
             e = slice(cio[i], cio[i + 1])
             P = step_island(self, pair[r], x[r], n[r], v[r], vc[r], W[r], Wc[r], a_R[io[i]:io[i + 1]], t0, info,
-                            cp[e] - io[i], cq[e] - io[i], Wpq[e], Wcpq[e], self._rest_rows[r], None if L is None else L[r])
+                            cp[e] - io[i], cq[e] - io[i], Wpq[e], Wcpq[e], self._rest_rows[r],
+                            None if L is None else L[io[i]:io[i + 1]])
             force[r] = P / self.dt
         self.last_step_info = info
         return ContactForces(force=force, point=point.copy(), pair=pair.copy())
