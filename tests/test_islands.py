@@ -224,3 +224,22 @@ def test_deep_oblique_island(engine):
         if vy > 0:  # the coupling is there: the beads' impact on each other during the plate contacts
             assert between and between[0].F_max > 0.3 * plate[0].F_max
             assert plate[0].inputs["t_onset"] < between[0].inputs["t_onset"] < plate[0].inputs["t_end"]
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_pile_of_four_gains_no_energy(engine):
+    """scripts/pile.py's 4 spheres (2 a row), 100 steps of 1 ms: no rise of
+    the island check's energy above round-off in any step. Before, MuJoCo's
+    sphere-sphere gap rows were read at their swept closest approach however
+    far past the step it lay (engines._sweep): b3-b1 at step 91 at
+    x = -12 um, its approach 14.6 ms ahead with the spheres 0.56 mm apart at
+    the step's end; b1's floor bounce inside the island step closed the
+    12 um, and the contact held its force into step 92 with the centres
+    0.45 mm apart: +7.8e-7 J."""
+    _engine_available(engine)
+    from test_island_kernel import _pile_module
+    from test_pile import ENERGY_ROUNDOFF
+
+    out = _pile_module().run(engine, 4, 2, 100, 1e-3)
+    assert out["E_max_step_rise_J"] <= ENERGY_ROUNDOFF, out
+    assert out["island_steps_flagged"] == 0, out

@@ -147,10 +147,29 @@ def test_sweep_reduces_to_the_line_of_centres_for_collinear_motion():
     normal (to round-off) and the gap; separating or touching pairs are not swept."""
     e = np.array([[3e-3, 0.0, 0.0], [3e-3, 0.0, 0.0], [1e-3, 0.0, 0.0]])
     w = np.array([[-5.0, 0.0, 0.0], [5.0, 0.0, 0.0], [-1.0, 0.0, 0.0]])
-    swept, n, x = sweep(e, w, np.array([2e-3, 2e-3, 2e-3]))
+    swept, n, x = sweep(e, w, np.array([2e-3, 2e-3, 2e-3]), 1e-3)
     assert swept.tolist() == [True, False, False]  # the third overlaps already
     np.testing.assert_allclose(n[0], [1.0, 0.0, 0.0], atol=1e-15)
     assert x[0] == pytest.approx(-1e-3, rel=1e-12)
+
+
+@pytest.mark.parametrize("w", [[-0.01, 0.0, 0.05], [-0.01, 0.0, 0.2]], ids=["touch", "miss"])
+def test_sweep_of_a_later_approach_takes_the_step_end(w):
+    """Spheres (S = 20 mm) 0.1 mm apart sliding past each other slowly: a
+    first touch (10.7 ms) or a closest approach (5.0 ms) after the 1 ms
+    step. The manager's gap x - (w . n) t along the returned normal is the
+    true gap S - |e + w t| at the step's end, above it before (never later
+    to close), and below 0 all through the step (no touch in it)."""
+    S, dt = 0.02, 1e-3
+    e, w = np.array([S + 1e-4, 0.0, 0.0]), np.array(w)
+    swept, n, x = sweep(e[None], w[None], np.array([S]), dt)
+    assert swept[0]
+    t = np.linspace(0.0, dt, 101)
+    true = S - np.linalg.norm(e + w * t[:, None], axis=1)
+    lin = x[0] - float(w @ n[0]) * t
+    assert lin[-1] == pytest.approx(true[-1], rel=1e-12)
+    assert np.all(lin >= true - 1e-18) and np.all(lin < 0.0)
+    np.testing.assert_allclose(n[0], (e + w * dt) / np.linalg.norm(e + w * dt), rtol=1e-15)
 
 
 def dense_spec(pool=24) -> JetSpec:

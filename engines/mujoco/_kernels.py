@@ -186,7 +186,7 @@ def free_kinematics_into(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos,
                       - (cvel[b2, 4] + (cvel[b2, 2] * h0 - cvel[b2, 0] * h2)))
                 w2 = ((cvel[b1, 5] + (cvel[b1, 0] * f1 - cvel[b1, 1] * f0))
                       - (cvel[b2, 5] + (cvel[b2, 0] * h1 - cvel[b2, 1] * h0)))
-                sw, m0, m1, m2, xw = sweep_scalar(e0, e1, e2, w0, w1, w2, R + R2)
+                sw, m0, m1, m2, xw = sweep_scalar(e0, e1, e2, w0, w1, w2, R + R2, dt)
                 if sw:
                     xs[g] = xw
                     ns[g, 0], ns[g, 1], ns[g, 2] = m0, m1, m2

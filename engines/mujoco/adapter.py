@@ -344,7 +344,7 @@ class _FreeGroup:
             c2 = d.geom_xpos[self.g2[gap]]
             w = ((cvel[self.b1[gap], 3:] + cross_rows(w1[gap], c1[gap] - c1c[gap]))
                  - (cvel[self.b2[gap], 3:] + cross_rows(w2[gap], c2 - c2c[gap])))
-            sw, n_sw, x_sw = sweep(c1[gap] - c2, w, self.R1[gap] + self.R2[gap])
+            sw, n_sw, x_sw = sweep(c1[gap] - c2, w, self.R1[gap] + self.R2[gap], dt)
             g, n_sw, x_sw = gap[sw], n_sw[sw], x_sw[sw]
             x[g], nrm[g] = x_sw, n_sw
             p1[g] = c1[g] - self.R1[g][:, None] * n_sw
