@@ -26,6 +26,7 @@ from numba import njit
 from msf_contact import _normal as N
 
 from . import _kernel as K
+from msf_contact._jitcache import guard as _guard
 
 _A, _B, _C = np.ascontiguousarray(N._A), np.ascontiguousarray(N._B), np.ascontiguousarray(N._C)
 _E3, _E5, _D = np.ascontiguousarray(N._E3), np.ascontiguousarray(N._E5), np.ascontiguousarray(N._D)
@@ -246,3 +247,7 @@ def impact(code, lc, oc, mass, v0, x_scale, x_limit, out):
         ended, t_end, v_end = ENDED_FORCE, t_ev[EV_FORCE], v_ev[EV_FORCE]
     out[R_TAU], out[R_VOUT], out[R_ENDED] = t_end, max(-v_end, 0.0), ended
     return OK
+
+
+# numba's cache keyed on every source compiled in (msf_contact._jitcache)
+_guard(__name__, K, N)

@@ -44,6 +44,7 @@ import math
 
 from . import _kernel as K
 from ._kernel import G, L_ON, LC_FZ, NY, PI, VC, WEL, WVI, X, V, P, ST_DONE, ST_ENDED, ST_ONSET, END_FORCE, END_OVERLAP, jit
+from msf_contact._jitcache import guard as _guard
 
 # island status (ist)
 IS_RUN, IS_DONE, IS_STOP, IS_OVER = 0, 1, 2, 3
@@ -396,3 +397,7 @@ def advance_islands(cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a,
         if st != IS_DONE:
             stopped += 1
     return stopped
+
+
+# numba's cache keyed on every source compiled in (msf_contact._jitcache)
+_guard(__name__, K)

@@ -44,6 +44,7 @@ import math
 
 import numpy as np
 from numba import njit
+from msf_contact._jitcache import guard as _guard
 
 #: Compiled without numba's reference counting (NRT): the kernel allocates
 #: nothing (scratch arrays come from the caller), and the refcounts numba
@@ -1081,3 +1082,7 @@ def own_gaps(pair, x, xm_state, active, listed, own_gap, xdot, xd0, an, off, xd0
         else:
             out[i] = x[i]
     return kept
+
+
+# numba's cache keyed on every source compiled in (msf_contact._jitcache)
+_guard(__name__)

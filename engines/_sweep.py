@@ -52,6 +52,7 @@ import math
 
 import numpy as np
 from numba import njit
+from msf_contact._jitcache import guard as _guard
 
 
 @njit(cache=True, error_model="numpy")
@@ -102,3 +103,7 @@ def sweep(e, w, S, dt):
         s, n0, n1, n2, xx = sweep_scalar(e[i, 0], e[i, 1], e[i, 2], w[i, 0], w[i, 1], w[i, 2], S[i], dt)
         swept[i], n[i, 0], n[i, 1], n[i, 2], x[i] = s, n0, n1, n2, xx
     return swept, n, x
+
+
+# numba's cache keyed on every source compiled in (msf_contact._jitcache)
+_guard(__name__)

@@ -33,6 +33,7 @@ import math
 
 import numpy as np
 from numba import njit
+from ._jitcache import guard as _guard
 
 #: Rows of the (NKEYS, n) result, in the order of MSFLaw._onset_dict's keys.
 KEYS = ("omega_x", "omega_y", "omega_z", "E", "eta_E", "G", "eta_Gy", "eta_Gz", "x_max_pred", "v_n0", "mass")
@@ -133,3 +134,7 @@ def onset_rows(v, m, x0, two_R, tg, nodes, c, E, E_loss, G, G_loss, tg_G, k_ha, 
         out[9, r] = v[r]
         out[10, r] = m[r]
     return OK
+
+
+# numba's cache keyed on every source compiled in (msf_contact._jitcache)
+_guard(__name__)

@@ -30,7 +30,9 @@ import math
 import numpy as np
 from numba import njit
 
+from engines import _sweep
 from engines._sweep import sweep_scalar
+from msf_contact._jitcache import guard as _guard
 
 # columns of gi (int64): geoms, bodies, the bodies' root bodies (subtree_com),
 # free joints and their first dofs, flags, pair index
@@ -576,3 +578,7 @@ def add_couples(q, xmat, b, dof, tq):
         t0, t1, t2 = tq[r, 0], tq[r, 1], tq[r, 2]
         for i in range(3):
             q[a + 3 + i] += (xmat[k, i] * t0 + xmat[k, 3 + i] * t1) + xmat[k, 6 + i] * t2
+
+
+# numba's cache keyed on every source compiled in (msf_contact._jitcache)
+_guard(__name__, _sweep)

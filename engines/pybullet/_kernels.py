@@ -26,6 +26,7 @@ import math
 
 import numpy as np
 from numba import njit
+from msf_contact._jitcache import guard as _guard
 
 #: fast_rows' status: done, or two sphere centres coincide (no normal).
 OK, COINCIDENT = 0, 1
@@ -300,3 +301,7 @@ def body_loads(ph, F, point, slot, com, b_push):
                 Tm[s_, d] = torque[j, d]
             s_ += 1
     return one, F1, P1, many, Fm, Tm
+
+
+# numba's cache keyed on every source compiled in (msf_contact._jitcache)
+_guard(__name__)
