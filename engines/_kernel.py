@@ -563,13 +563,14 @@ def _solve3(A3, ia, B, ib, iout, M):
 
 @jit
 def prelude(cst, pairs, x_eng, n, v, vc, W, Wc, a, paper, Lr, t0, dt, settle_rate, settled_path, kg, codes, LC, oc,
-            active, x_state, s_state, tau_est, dv_corr, dvc_corr, W_el, W_visc, Q_t, W_t,
+            active, was_settled, x_state, s_state, tau_est, dv_corr, dvc_corr, W_el, W_visc, Q_t, W_t,
             y, T, t_loc, in_c, settled, status, turned, fl, ints, buf, m33, v3, M34):
     """Step start for rows 0..k-1 (pair index pairs[r]): y, T, in_c, and the
     settled path for the resting rows (its record bookkeeping into the per-pair
     arrays fl (NF, P) and turned (P,), see settled_row). oc (P, NOC): onset
-    constants per pair. ints counts settled rows [0], Newton iterations [1],
-    RK4 substeps [2] and ends [3]."""
+    constants per pair; was_settled (P,): on the settled path in the last
+    step. ints counts settled rows [0], Newton iterations [1], RK4 substeps
+    [2] and ends [3]."""
     k = pairs.shape[0]
     for r in range(k):
         p = pairs[r]
@@ -582,7 +583,13 @@ def prelude(cst, pairs, x_eng, n, v, vc, W, Wc, a, paper, Lr, t0, dt, settle_rat
         x0 = x_state[p] if act else x_eng[r]
         settle = act and (t0 - fl[F_TONSET, p]) > cst[C_SETTLE] * tau_est[p]
         if settle:
-            x0 = x0 + settle_rate * (x_eng[r] - x0)
+            # a row alone (state.relax): after a settled step toward x_eng, else toward x_eng less the
+            # sub-cycled lead and never deeper
+            if was_settled[p]:
+                x0 = x0 + settle_rate * (x_eng[r] - x0)
+            else:
+                lead = -0.5 * dt * (y[r, V] * nr[0] + y[r, V + 1] * nr[1] + y[r, V + 2] * nr[2])
+                x0 = x0 + settle_rate * min(x_eng[r] - lead - x0, 0.0)
         y[r, X] = x0
         # tangential displacement onto the current tangent plane, same length
         s0, s1, s2 = s_state[p, 0], s_state[p, 1], s_state[p, 2]

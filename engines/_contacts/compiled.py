@@ -91,7 +91,7 @@ class CompiledPath:
                 self._L0 = np.zeros((k, K.NL))
             L = self._L0[:k]
         K.prelude(_KCST, p, x_eng, n, v, vc, W, Wc, a, paper, L, t0, dt, self.settle_rate, self.settled_path, kg, codes,
-                  LC, oc, self.active, self.x, self.s, self.tau_est, self.dv_corr, self.dvc_corr, self.W_el,
+                  LC, oc, self.active, self.settled, self.x, self.s, self.tau_est, self.dv_corr, self.dvc_corr, self.W_el,
                   self.W_visc, self.Q_t, self.W_t, y, T, t_loc, in_c, settled, status, self.turned, fl, ints,
                   *self._scr_settled)
         for _ in range(MAX_SEGMENTS):

@@ -86,7 +86,7 @@ def step_islands(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, io, cio, cp, cq, W
     dt = mgr.dt
     k = p.size
     m = io.size - 1
-    y = initial_state(mgr, p, x_eng, n, v, vc, resting)
+    y = initial_state(mgr, p, x_eng, n, v, vc, resting, io)
     lever_start(y, L)
     Lr = np.zeros((k, K.NL)) if L is None else np.ascontiguousarray(L, dtype=float)
     t1, t2 = _tangent_basis(n)

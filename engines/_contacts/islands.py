@@ -278,7 +278,7 @@ def step_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq, 
     dt = mgr.dt
     k = p.size
     act = mgr.active[p].copy()
-    y = initial_state(mgr, p, x_eng, n, v, vc, resting)
+    y = initial_state(mgr, p, x_eng, n, v, vc, resting, np.array([0, k]))
     lever_start(y, L)
     isl = _Island(mgr, p, n, W, Wc, a, cp, cq, Wpq, Wcpq, L)
     rows = _Rows(n, W, a, L)

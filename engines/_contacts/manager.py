@@ -476,7 +476,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         step, so it stays in the other pairs' a_ext; an impact shorter than
         that (the whole contact, or most of it, inside a step) has already
         given its impulse and is left out."""
-        act = self.active[pair] & ~self.in_island[pair]
+        act = self.active[pair]
         resting = (t_next - self.t_onset[pair]) > SETTLE_AFTER_DURATIONS * self.tau_est[pair]
         resolved = self.tau_est[pair] >= STEPS_PER_CONTACT_MIN * self.dt
         return act & (self.settled[pair] | resting | resolved)

@@ -1351,7 +1351,7 @@ class MujocoAdapter(EngineAdapter):
         # held_forces, the free group's forces to apply, and the held pairs' own share of
         # the next a_ext if no impulse leaves it (_compute's bookkeeping)
         hit, keep, n_hit, n_unheld, *todo = K.after_step(
-            self._gi, self._group_of, pair, force, mgr.active & ~mgr.in_island, mgr.settled, mgr.t_onset, mgr.tau_est,
+            self._gi, self._group_of, pair, force, mgr.active, mgr.settled, mgr.t_onset, mgr.tau_est,
             float(d.time) + dt, SETTLE_AFTER_DURATIONS, STEPS_PER_CONTACT_MIN, mgr.dt,
             p1 if p1 is not None else self._no_points, p2 if p2 is not None else self._no_points, d.xipos,
             kin.W, self._last_dv, dt)
@@ -1363,6 +1363,12 @@ class MujocoAdapter(EngineAdapter):
             if self._slow:
                 self._slow_forces(pair, force, hit, keep, points, None)
             return
+        if not n_unheld:
+            # every force held, but couples to apply: after_step took the held pairs' own share W P out
+            # already; velocity_change below overwrites the rows whose bodies the couples move and the
+            # held_dv after it adds the share to every held row: start them from zero (it was counted
+            # twice on the rows the couples did not move, their own force read as outside acceleration)
+            self._last_dv[pair[keep]] = 0.0
         # the impulses that leave the next step's a_ext (with the couples of the moving contact points)
         Q = np.zeros(m.nv) if Qc is None else Qc
         if fast is not None:
