@@ -5,7 +5,7 @@ VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.installed-stamp
 
-.PHONY: demo test bench venv clean docs exact crosscheck
+.PHONY: demo test bench venv clean docs exact crosscheck pile200
 
 $(STAMP): pyproject.toml
 	test -x $(PY) || $(PYTHON) -m venv $(VENV)
@@ -24,6 +24,14 @@ test: $(STAMP)
 
 bench: $(STAMP)
 	$(PY) -m benchmarks.run --out out/bench
+
+# issue 10: 200 spheres (steel and rubber) poured into a box, both engines, dt = 1 ms, until at rest
+# (every sphere < 1 mm/s for 100 steps) or 6,000 steps; ~0.5 CPU-s a step: hours, not in `make test`.
+pile200: $(STAMP)
+	mkdir -p out
+	for e in mujoco pybullet; do \
+		$(PY) scripts/pile.py --engine $$e --n 200 --side 6 --steps 6000 --every 50 --rest-steps 100 \
+			> out/pile200_$$e.json 2> out/pile200_$$e.progress || exit 1; done
 
 docs: $(STAMP)
 	$(PY) scripts/make_validation.py docs/validation.md

@@ -39,7 +39,8 @@ sphere at the end, the first step from which every sphere stays slower
 than REST_SPEED, and the end state against statics: the floor's and walls'
 vertical force on the spheres against their weight, and each contact's
 overlap against the static overlap of the law's elastic force for the
-normal force it carries; the wall time per step.
+normal force it carries, and the engine's own overlaps from the sphere
+centres (engine_overlaps) against the same; the wall time per step.
 """
 
 from __future__ import annotations
@@ -243,7 +244,11 @@ def _static_summary(prefix: str, rel: np.ndarray, w_mean: float) -> dict:
             f"{prefix}overlap_vs_static_max_abs_m": float(rel[:, 1].max(initial=0.0))}
 
 
-def run(engine: str, n: int, side: int, steps: int, dt: float) -> dict:
+def run(engine: str, n: int, side: int, steps: int, dt: float, every: int = 0, rest_steps: int = 0) -> dict:
+    """The pile for up to ``steps`` steps (the module docstring's report). every > 0: a progress line
+    (step, fastest sphere, largest rise of E so far, islands flagged, wall time per step) on stderr
+    every that many steps; rest_steps > 0: stop once every sphere has stayed below REST_SPEED for
+    that many steps."""
     builder = build_mujoco if engine == "mujoco" else build_pybullet
     ad, ctx, speeds, centres = builder(n, side, dt, with_centres=True)
     mgr = ad.manager
@@ -277,6 +282,14 @@ def run(engine: str, n: int, side: int, steps: int, dt: float) -> dict:
                     rest_from = k if rest_from is None else rest_from
                 else:
                     rest_from = None
+                if every and k % every == 0:
+                    rise = float(np.max(np.diff(seq), initial=0.0))
+                    print(json.dumps({"step": k, "v_max_m_s": float(v.max()), "E_J": seq[-1], "E_max_step_rise_J": rise,
+                                      "island_steps_flagged": len(mgr.island_energy_gains),
+                                      "wall_s_per_step": (time.perf_counter() - t0) / len(seq)}), file=sys.stderr,
+                          flush=True)
+                if rest_steps and rest_from is not None and k - rest_from >= rest_steps:
+                    break
             records += ad.pop_records()
             x_on = np.array([r.inputs["x_onset"] for r in records] + [mgr.x_onset[p] for p in mgr.active_pairs])
             v_end = float(speeds().max())
@@ -311,13 +324,16 @@ def main(argv=None) -> None:
     ap.add_argument("--side", type=int, default=3, help="spheres a row in the box")
     ap.add_argument("--steps", type=int, default=600)
     ap.add_argument("--dt", type=float, default=1e-3)
+    ap.add_argument("--every", type=int, default=0, help="a progress line on stderr every this many steps")
+    ap.add_argument("--rest-steps", type=int, default=0,
+                    help="stop once every sphere has been slower than REST_SPEED for this many steps")
     a = ap.parse_args(argv)
     for name, v in (("n", a.n), ("side", a.side), ("steps", a.steps)):
         if v < 1:
             raise ValueError(f"{name} = {v!r} must be >= 1")
     if not a.dt > 0:
         raise ValueError(f"dt = {a.dt!r} s must be > 0")
-    print(json.dumps(run(a.engine, a.n, a.side, a.steps, a.dt)))
+    print(json.dumps(run(a.engine, a.n, a.side, a.steps, a.dt, a.every, a.rest_steps)))
 
 
 if __name__ == "__main__":

@@ -51,9 +51,11 @@ rescaled to its length (DEM practice).
 
 Resting contacts. A contact that lasts longer than SETTLE_AFTER_DURATIONS
 estimated durations is a resting (or rolling, or pressed) contact: its
-internal x is relaxed toward the engine's by ``settle_rate`` per step, so the
-remaining offset (the lead above) vanishes and the engine body rests at the
-static overlap.
+internal x is relaxed by ``settle_rate`` per step toward the engine's less
+the lead of the step about to be integrated, so the remaining offset (the
+lead above) vanishes and the engine body rests at the static overlap; a move
+that would store elastic energy is taken only as far as the island's other
+rows release energy in the same step (:data:`.state.RELAX_DOC`).
 
 Settled path. Such a contact whose approach rate is also small
 (SETTLED_SPEED_RATIO) is not sub-cycled: the law is applied once per

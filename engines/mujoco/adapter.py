@@ -1350,8 +1350,11 @@ class MujocoAdapter(EngineAdapter):
         force = np.asarray(out.force, dtype=float).reshape(-1, 3)
         # held_forces, the free group's forces to apply, and the held pairs' own share of
         # the next a_ext if no impulse leaves it (_compute's bookkeeping)
+        # the manager's one rule (held_forces) as the kernel's active and settled masks: kept = hit & hold
+        hold = np.zeros(mgr.active.size, bool)
+        hold[pair] = held_forces(mgr, pair, float(d.time) + dt)
         hit, keep, n_hit, n_unheld, *todo = K.after_step(
-            self._gi, self._group_of, pair, force, mgr.active, mgr.settled, mgr.t_onset, mgr.tau_est,
+            self._gi, self._group_of, pair, force, hold, hold, mgr.t_onset, mgr.tau_est,
             float(d.time) + dt, SETTLE_AFTER_DURATIONS, STEPS_PER_CONTACT_MIN, mgr.dt,
             p1 if p1 is not None else self._no_points, p2 if p2 is not None else self._no_points, d.xipos,
             kin.W, self._last_dv, dt)
