@@ -151,14 +151,15 @@ def test_pile_pour_gains_no_energy(engine):
 #: The settling pile: 2 spheres (R = 10 mm, one steel and one natural rubber, scripts/pile.py's seeded
 #: layout) poured into a box one sphere wide: the rubber ball comes to rest on the steel one, which
 #: rests on the floor, both touching the walls (1.5 mm off at the start), dt = 1 ms, both engines.
-SETTLE_N, SETTLE_SIDE, SETTLE_STEPS = 2, 1, 1500
+SETTLE_N, SETTLE_SIDE, SETTLE_STEPS = 2, 1, 2500
 #: The internal overlap at rest against the static overlap x_s of the normal force each loaded contact
-#: carries (F_n(x_s, 0) = F_n, the law at zero rate): measured <= 5.7e-2 (MuJoCo) and 8.6e-3 (pybullet),
+#: carries (F_n(x_s, 0) = F_n, the law at zero rate): measured <= 7.0e-2 (MuJoCo) and 8.0e-3 (pybullet),
 #: the remainder of the resting relaxation toward the engine's overlap (docs/engines.md, the pile).
 REST_OVERLAP_RTOL = 0.1
-#: The floor carries the column's weight at rest, |support / weight - 1| below this (the walls touch
-#: lightly; measured 1.6e-3 and 1.5e-2).
-SUPPORT_RTOL = 3e-2
+#: The floor and walls carry the column's weight at rest, |support / weight - 1| below this: measured
+#: 3.7e-2 (MuJoCo: the step-averaged forces while the relaxation still lowers the rubber-steel overlap
+#: at < 1 mm/s) and 1.5e-4 (pybullet).
+SUPPORT_RTOL = 5e-2
 
 
 @pytest.mark.parametrize("engine", [pytest.param("mujoco", marks=pytest.mark.mujoco),
@@ -169,11 +170,11 @@ def test_small_pile_settles_without_gain(engine):
     the pile's energy E (scripts/pile.py: kinetic, potential at z - dt v/2,
     the contacts' stored energy as the island check counts it) never rises
     in a step by more than the check's relative tolerance ENERGY_GAIN_RTOL of
-    its start (measured: 6.6e-8 and 7.8e-8 J of 6.4e-3 J), every sphere
+    its start (measured: 4.4e-8 and 2.8e-8 J of 6.4e-3 J), every sphere
     comes below REST_SPEED (1 mm/s), the floor carries the weight and each
     loaded contact's internal overlap is the static overlap of its force.
-    Not asserted: the engine's own geometry, which rests up to 28 um deeper
-    on the rubber-steel contact (docs/engines.md). Before: the resting
+    Not asserted: the engine's own geometry, which in MuJoCo rests up to
+    5 um deeper on the rubber-steel contact (docs/engines.md). Before: the resting
     relaxation followed the engine's overlap up, storing energy no force
     worked for (the 8-sphere pile: 90-215 island steps flagged)."""
     _engine_available(engine)
