@@ -327,13 +327,20 @@ def main(argv=None) -> None:
     ap.add_argument("--every", type=int, default=0, help="a progress line on stderr every this many steps")
     ap.add_argument("--rest-steps", type=int, default=0,
                     help="stop once every sphere has been slower than REST_SPEED for this many steps")
+    ap.add_argument("--out", default=None,
+                    help="write the result as JSON to this file, atomically (default: print it on stdout)")
     a = ap.parse_args(argv)
     for name, v in (("n", a.n), ("side", a.side), ("steps", a.steps)):
         if v < 1:
             raise ValueError(f"{name} = {v!r} must be >= 1")
     if not a.dt > 0:
         raise ValueError(f"dt = {a.dt!r} s must be > 0")
-    print(json.dumps(run(a.engine, a.n, a.side, a.steps, a.dt, a.every, a.rest_steps)))
+    result = run(a.engine, a.n, a.side, a.steps, a.dt, a.every, a.rest_steps)
+    if a.out is None:
+        print(json.dumps(result))
+    else:  # temp file, then rename: an interrupted run leaves no half-written result
+        from experiments._io import write_json_atomic
+        write_json_atomic(a.out, result)
 
 
 if __name__ == "__main__":
