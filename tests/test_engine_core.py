@@ -400,6 +400,16 @@ def test_bad_inputs_are_refused():
         mgr.step(kin)
     with pytest.raises(ValueError, match="mass"):
         effective_inverse_inertia_free(0.0, np.eye(3), np.zeros(3), math.inf, None, np.zeros(3))
+    with pytest.raises(ValueError, match=r"together has shape \(2,\); expected \(1,\)"):
+        mgr.set_together(np.ones(2, bool))
+
+
+def test_a_line_contact_refuses_a_shape_without_a_side():
+    from engines._narrow import SideLine
+    from msf_contact.shapes import Sphere
+
+    with pytest.raises(ValueError, match="a line contact needs a capsule or a cylinder, not Sphere"):
+        SideLine(Sphere(0.01), ("ball", "floor"))
 
 
 def test_unlisted_contact_is_an_error_not_a_silent_cut():

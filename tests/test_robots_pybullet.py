@@ -452,3 +452,23 @@ def test_the_ant_on_its_ankle_limits_rests_with_its_feet_where_the_engine_has_th
         assert max(drift) < FOOT_DRIFT_ATOL
     finally:
         pb.disconnect(c)
+
+
+def test_bad_robot_inputs_are_refused_before_loading(tmp_path):
+    """A joint axis of zero length (which loadMJCF would keep) and a limit ERP
+    outside [0, 1] are ValueErrors naming the joint or the parameter."""
+    from engines.pybullet.robots import unit_joint_axes
+
+    bad = tmp_path / "bad.xml"
+    bad.write_text('<mujoco><worldbody><body name="b"><joint name="hinge" type="hinge" axis="0 0 0"/>'
+                   '<geom type="sphere" size="0.1"/></body></worldbody></mujoco>')
+    with pytest.raises(ValueError, match=r"joint 'hinge' has axis '0 0 0': give a non-zero 3-vector"):
+        unit_joint_axes(str(bad))
+    pair = ContactPair(preset("natural-rubber"), preset("steel"))
+    c = scenes.new_client(DT["ant.xml"])
+    try:
+        with pytest.raises(ValueError, match=r"limit_erp = 1.5 must be in \[0, 1\] or None"):
+            load_mjcf_with_msf_floor(c, _path("ant.xml"), pair, limit_erp=1.5)
+        assert pb.getNumBodies(physicsClientId=c) == 0  # refused before anything was loaded
+    finally:
+        pb.disconnect(c)
