@@ -15,9 +15,11 @@ stages' limit forces). The rest phase's energy is
 :class:`engines.mujoco.robots.RestEnergy`'s account: kinetic energy of the
 physical velocities (``MujocoAdapter.velocity_offset`` taken out),
 gravitational, the energy held in and exchanged by the MSF contacts
-(``ContactManager.stored_energy``) and the energy MuJoCo's joint-limit
-constraints took out (minus the work of their forces, a soft constraint
-being no spring). A rest step that raises it beyond its bound
+(``ContactManager.stored_energy``) and the energy MuJoCo's constraints
+took out (minus the work of their forces, a soft constraint being no
+spring): its joint limits, its own contacts (the humanoid's limbs touching
+each other, which MSF does not carry; every contact of the built-in
+variant), the rest. A rest step that raises it beyond its bound
 (``REST_GAIN_RTOL``) is energy the account does not explain: counted in the
 record (``*_rest_unexplained_steps``, the largest ``*_rest_unexplained_max_J``)
 and warned on stderr.
@@ -93,7 +95,9 @@ def measure(name: str, steps: int) -> dict:
         out[f"{mode}_rest_energy_J"] = [float(E[0]), float(E[-1])]
         out[f"{mode}_rest_energy_rise_J"] = float(np.max(E - E[0]))
         out[f"{mode}_rest_step_rise_max_J"] = float(np.max(np.diff(E)))
-        out[f"{mode}_rest_limits_absorbed_J"] = account.absorbed
+        out[f"{mode}_rest_limits_absorbed_J"] = account.absorbed_by["limits"]
+        out[f"{mode}_rest_own_contacts_absorbed_J"] = account.absorbed_by["contacts"]
+        out[f"{mode}_rest_constraints_absorbed_J"] = account.absorbed
         out[f"{mode}_rest_unexplained_steps"] = len(account.gains)
         out[f"{mode}_rest_unexplained_max_J"] = max((g[1] for g in account.gains), default=0.0)
         if adapter is not None:
@@ -138,7 +142,8 @@ def standing(name: str, steps: int = STAND_STEPS) -> dict:
 
 def _describe(r: dict) -> list[str]:
     return [f"  rest (RestEnergy): msf {r['msf_rest_energy_J'][0]:.4g} -> {r['msf_rest_energy_J'][1]:.4g} J, limits took "
-            f"{r['msf_rest_limits_absorbed_J']:.3g} J, largest step rise {r['msf_rest_step_rise_max_J']:.3g} J, "
+            f"{r['msf_rest_limits_absorbed_J']:.3g} J, MuJoCo's own contacts {r['msf_rest_own_contacts_absorbed_J']:.3g} J, "
+            f"largest step rise {r['msf_rest_step_rise_max_J']:.3g} J, "
             f"{r['msf_rest_unexplained_steps']} steps above the bound (largest {r['msf_rest_unexplained_max_J']:.3g} J); "
             f"built-in {r['builtin_rest_energy_J'][0]:.4g} -> {r['builtin_rest_energy_J'][1]:.4g} J, "
             f"{r['builtin_rest_unexplained_steps']} steps above (largest {r['builtin_rest_unexplained_max_J']:.3g} J)",

@@ -1,7 +1,8 @@
 """A robot from pybullet_data/mjcf at rest in MuJoCo, in a user's own
 ``mj_step`` loop: the energy account of engines.mujoco.robots.RestEnergy
-(kinetic + gravitational + the MSF contacts' stored energy + the energy the
-joint limits took, the work of their forces) and, per joint-limit episode
+(kinetic + gravitational + the MSF contacts' stored energy + the energy
+MuJoCo's constraints took, the work of their forces: its joint limits and
+its own contacts between the robot's limbs) and, per joint-limit episode
 (from a limit row's first force to its release), the work the limit did:
 the numbers docs/engines.md ("Robot models", MuJoCo's joint limits) quotes.
 
@@ -12,13 +13,15 @@ Seeded random controls for the torque steps (uniform in each actuator's
 control range, or in [-1, 1] with ``--unit-controls`` as a user's loop
 might: MuJoCo clamps them), none after. RK4 models run under Euler at
 their own time step (RestEnergy refuses RK4). ``--builtin``: MuJoCo's own
-contact instead of MSF. ``--resting-in-islands``: an experiment on the
-manager (ContactManager._resting replaced for the rest phase: no row is
-resting, so a body's resting contacts are solved in its island). Printed:
-the account at the start and end of the rest phase, its largest one-step
+contact instead of MSF. ``--resting-apart``: the manager's rule before
+issue 13's fix, for comparison (ContactManager.set_together with no pair:
+a body whose contacts all rest has them stepped one by one, each with the
+others' held forces a step late, instead of in its island). Printed: the
+account at the start and end of the rest phase, its largest one-step
 change, the steps it rose beyond its bound (RestEnergy.gains), the energy
-the limits took; the limit episodes that ended in each phase, how many
-gave back more energy than they took and how much.
+the limits and MuJoCo's own contacts took; the limit episodes that ended
+in each phase, how many gave back more energy than they took and how
+much.
 """
 
 from __future__ import annotations
@@ -49,9 +52,9 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=13)
     ap.add_argument("--unit-controls", action="store_true")
     ap.add_argument("--builtin", action="store_true")
-    ap.add_argument("--resting-in-islands", action="store_true",
-                    help="an experiment: from the rest phase on, no contact row counts as resting, so a body's "
-                         "resting contacts are solved in its island instead of alone with held forces")
+    ap.add_argument("--resting-apart", action="store_true",
+                    help="the rule before issue 13's fix: a body whose contacts all rest has them stepped one by one "
+                         "with the others' held forces a step late, not in its island")
     a = ap.parse_args(argv)
     model, data, pairs = load_with_msf_floor(os.path.join(pybullet_data.getDataPath(), "mjcf", a.model),
                                              ContactPair(preset("natural-rubber"), preset("steel")))
@@ -60,6 +63,8 @@ def main(argv=None) -> int:
     if a.builtin:
         model.exclude_signature[:] = -1
     adapter = None if a.builtin else MujocoAdapter(model, data, pairs)
+    if a.resting_apart and adapter is not None:
+        adapter.manager.set_together(np.zeros(len(adapter.manager.pairs), bool))
     rng = np.random.default_rng(a.seed)
     lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
     h = model.opt.timestep
@@ -71,8 +76,6 @@ def main(argv=None) -> int:
             for k in range(a.torque_steps + a.rest_steps):
                 if k == a.torque_steps:
                     data.ctrl[:] = 0.0
-                    if a.resting_in_islands and adapter is not None:
-                        adapter.manager._resting = lambda pair, *_: np.zeros(len(pair), bool)
                     account = RestEnergy(model, data, adapter)
                     E = [account.total]
                 elif k < a.torque_steps:
@@ -94,7 +97,7 @@ def main(argv=None) -> int:
     print(f"{a.model}, {'built-in contact' if a.builtin else 'MSF'}, dt = {h:g} s: rest {a.rest_steps} steps: account "
           f"{E[0]:.4f} -> {E[-1]:.4f} J, largest one-step change {np.diff(E).max():.4g} J, steps above the bound "
           f"{len(account.gains)} (largest {max((g[1] for g in account.gains), default=0.0):.3g} J), the limits took "
-          f"{account.absorbed:.4g} J")
+          f"{account.absorbed_by['limits']:.4g} J, MuJoCo's own contacts {account.absorbed_by['contacts']:.4g} J")
     for rest, label in ((False, "torques"), (True, "rest")):
         W = np.array([w for r, w in ended if r == rest])
         print(f"  limit episodes begun and ended under {label}: {W.size}, net work of the limits {W.sum():.4g} J; "

@@ -23,14 +23,23 @@ the integration goes on). A row that is not in contact moves with the
 island (its bodies are pushed by the others) until its own onset.
 
 Which rows join: rows sharing a moving body are linked, and a connected
-set of rows is an island when it holds a *dynamic* row (not in contact, or
-in contact for less than SETTLE_AFTER_DURATIONS estimated durations: a new,
-closing or young contact), so a strike on a resting row of balls couples the
-whole row within the step. A connected set of resting contacts only keeps
-the settled path row by row (a settled stack is a chain of implicit
-contacts whose held forces enter each other's a_ext, which is stable,
-tested in tests/test_multi_contact.py). A row alone keeps the manager's own
-path unchanged (bit-identical: tests/test_kernel.py, test_engine_core.py).
+set of two or more rows is an island, whether its contacts are new,
+closing or resting (issue 13). Resting contacts (older than
+SETTLE_AFTER_DURATIONS estimated durations and slow) were left to the
+settled path row by row when their whole set rested, each row stepped
+alone with its neighbours' held forces in its a_ext a step late: on a
+robot, whose joints pass load from one foot to another within a step,
+that put energy in at rest (MuJoCo's ant in a user's loop,
+scripts/rest_energy.py ant.xml --torque-steps 200 --rest-steps 600 --seed 3
+--unit-controls: 58 rest steps above RestEnergy's bound, up to 1.3 mJ;
+none solved in its island). A resting row in an island keeps its resting
+relaxation (state.relax, energy-funded inside the island). An adapter may
+hold sets apart (ContactManager.set_together: pybullet's multibodies with
+a joint at a limit, whose coupled solve would take the one-sided limit as
+held): a set of resting contacts only with a row held apart takes the
+settled path row by row. A row alone keeps the manager's own path
+unchanged (bit-identical: tests/test_kernel.py, test_engine_core.py), so
+does a sphere resting alone on a plane (the resting spheres' benchmark).
 
 Articulated links: the adapters give a link's body key as its tree's root,
 so contacts on links of one chain form one island, and W_pq comes from the
@@ -132,18 +141,15 @@ def islands(pair, active, age_ok, keys, together=None):
     island share a label; a row alone has a label of its own).
 
     An island is a connected set of rows linked through shared moving bodies
-    that holds at least one dynamic row (not in contact, or in contact for
-    less than SETTLE_AFTER_DURATIONS durations); a connected set of resting
-    contacts only is left row by row (the settled path). pair: pair index per
-    row (k,); active: in contact at the step start (k,); age_ok: past
-    SETTLE_AFTER_DURATIONS durations (k,); keys: (k, 2) body keys of the rows'
-    two bodies (-1: fixed; links of one tree share their root's key).
-    together: (k,) bool or None, rows whose connected set is an island even
-    when all its contacts rest (ContactManager.set_together; the pybullet
-    adapter's multibodies with no joint at a limit: the settled path steps
-    each foot alone with the others' forces a step late in its a_ext, which
-    on pybullet's ant raised the energy at rest by 1.31 J at 10 ms against
-    0.51 J solved together)."""
+    (the module docstring: resting contacts too). pair: pair index per row
+    (k,); active: in contact at the step start (k,); age_ok: past
+    SETTLE_AFTER_DURATIONS durations (k,), with active the resting rows;
+    keys: (k, 2) body keys of the rows' two bodies (-1: fixed; links of one
+    tree share their root's key). together: (k,) bool or None (every row),
+    the rows that may be solved together when all of their set rests
+    (ContactManager.set_together): a set of resting contacts only that holds
+    a row not together is left row by row (the settled path), a set with a
+    new, closing or young contact is an island whatever the mask says."""
     k = pair.shape[0]
     parent = np.arange(k)
 
@@ -165,11 +171,12 @@ def islands(pair, active, age_ok, keys, together=None):
             if b != a:
                 parent[b] = a
     lab = np.array([find(r) for r in range(k)])
-    # a component of resting contacts only keeps the settled path (each row on its own)
+    if together is None:
+        return lab
+    # a set of resting contacts only, with a row held apart, keeps the settled path row by row
     dynamic = ~(active & age_ok)
-    if together is not None:
-        dynamic = dynamic | np.asarray(together, bool)
-    live = np.zeros(k, bool)
+    live = np.ones(k, bool)
+    live[np.unique(lab[~np.asarray(together, bool)])] = False
     live[np.unique(lab[dynamic])] = True
     return np.where(live[lab], lab, np.arange(k) + k)
 

@@ -115,7 +115,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self._kg_of_pair = np.array([kidx.get(g, -1) for g in self._group_of], dtype=np.int64)
         self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
         self._coupling: tuple[np.ndarray, Callable] | None = None  # set_coupling
-        self._together: np.ndarray | None = None  # set_coupling: pairs solved together even at rest
+        self._together: np.ndarray | None = None  # set_together: pairs solved together also at rest (None: all)
         self._balance: IslandBalance | None = None  # set_energy_probe
         self._probe: Callable[[int], dict] | None = None
         self._probe_batch: Callable[[], Callable[[int], dict]] | None = None
@@ -528,10 +528,12 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self._coupling = (keys, blocks)
 
     def set_together(self, together) -> None:
-        """together: (P,) bool, pairs whose connected contacts (set_coupling)
-        are solved as one island from now on even when all of them rest, where
-        resting contacts otherwise take the settled path one by one
-        (engines._contacts.islands.islands); None: none."""
+        """together: (P,) bool, the pairs whose connected contacts
+        (set_coupling) are solved as one island also when all of them rest
+        (engines._contacts.islands.islands); a connected set of resting
+        contacts only that holds a pair not together takes the settled path
+        one row at a time. None (the default): every pair, a body's resting
+        contacts are solved in its island as its others (issue 13)."""
         if together is None:
             self._together = None
             return

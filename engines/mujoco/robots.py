@@ -128,11 +128,39 @@ def limit_force(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
     J^T f over the rows of type mjCNSTR_LIMIT_JOINT of ``data``'s last
     constraint solve (after ``mj_step`` under Euler, implicit or implicitfast:
     the force the step applied, solved at the step's start)."""
+    return constraint_forces(model, data, {"limits": (mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT,)})["limits"]
+
+
+#: MuJoCo's constraint rows by kind (``mjtConstraint``), as :class:`RestEnergy`
+#: books their work: its limits (joints, tendons), its own contacts (between a
+#: robot's own limbs, which MSF does not carry; a pair handed back to MuJoCo;
+#: every contact of a model run with MuJoCo's contact) and the rest
+#: (equality constraints, dof and tendon friction loss)
+CONSTRAINT_KINDS = {
+    "limits": (mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT, mujoco.mjtConstraint.mjCNSTR_LIMIT_TENDON),
+    "contacts": (mujoco.mjtConstraint.mjCNSTR_CONTACT_FRICTIONLESS, mujoco.mjtConstraint.mjCNSTR_CONTACT_PYRAMIDAL,
+                 mujoco.mjtConstraint.mjCNSTR_CONTACT_ELLIPTIC),
+    "other": (mujoco.mjtConstraint.mjCNSTR_EQUALITY, mujoco.mjtConstraint.mjCNSTR_FRICTION_DOF,
+              mujoco.mjtConstraint.mjCNSTR_FRICTION_TENDON),
+}
+
+
+def constraint_forces(model: mujoco.MjModel, data: mujoco.MjData, kinds=None) -> dict[str, np.ndarray]:
+    """Generalised force of MuJoCo's constraints of each kind [N or N m]
+    {kind: (nv,)}, J^T f over the rows of ``data``'s last constraint solve
+    whose ``efc_type`` is one of the kind's (``kinds``: {name: types},
+    default :data:`CONSTRAINT_KINDS`; their sum over all kinds is
+    ``qfrc_constraint``). After ``mj_step`` under Euler, implicit or
+    implicitfast: the forces the step applied, solved at the step's start."""
+    kinds = CONSTRAINT_KINDS if kinds is None else kinds
     n = data.nefc
-    out = np.zeros(model.nv)
+    out = {k: np.zeros(model.nv) for k in kinds}
     if n:
-        f = np.where(data.efc_type[:n] == mujoco.mjtConstraint.mjCNSTR_LIMIT_JOINT, data.efc_force[:n], 0.0)
-        mujoco.mj_mulJacTVec(model, data, out, f)
+        typ = data.efc_type[:n]
+        for k, types in kinds.items():
+            on = np.isin(typ, np.asarray(types, dtype=typ.dtype))
+            if np.any(on):
+                mujoco.mj_mulJacTVec(model, data, out[k], np.where(on, data.efc_force[:n], 0.0))
     return out
 
 
@@ -155,11 +183,16 @@ class RestEnergy:
     """The energy account of a model stepped with ``mj_step`` [J]: kinetic +
     gravitational (:func:`mechanical_energy`, physical velocities), plus the
     energy held in and exchanged by the MSF contacts
-    (``ContactManager.stored_energy``), plus the energy MuJoCo's joint-limit
-    constraints have taken out of the mechanism (``absorbed``, minus the work
-    of their forces). With no actuator and no external force it changes only
-    by dissipation (joint damping, the contacts' viscous and slip losses, the
-    limits' own net work) and the integrator's gravity term; a step that
+    (``ContactManager.stored_energy``), plus the energy MuJoCo's constraints
+    have taken out of the mechanism (``absorbed``, minus the work of their
+    forces; ``absorbed_by`` per kind of :data:`CONSTRAINT_KINDS`: its joint
+    limits, its own contacts, which MSF does not carry (a humanoid's limbs
+    touching each other: at rest after its torques its buttocks on a foot
+    gave back up to 2.8e-5 J a step, the steps the account rose before it
+    counted them, issue 13), the rest). With no actuator and no external
+    force it changes only by dissipation (joint damping, the contacts'
+    viscous and slip losses, the constraints' own net work) and the
+    integrator's gravity term; a step that
     raises it beyond ``REST_GAIN_RTOL`` of the kinetic energy plus that term
     (and ``REST_ROUNDOFF``) is energy the account does not explain: listed
     in ``gains`` (step, rise [J], allowed [J]) and warned on stderr once.
@@ -190,7 +223,10 @@ class RestEnergy:
                              "the limits' work cannot be read; use Euler, implicit or implicitfast "
                              "(model.opt.integrator)")
         self.model, self.data, self.adapter = model, data, adapter
-        self.absorbed = 0.0  #: energy the joint limits took out of the mechanism since the start [J]
+        #: energy MuJoCo's constraints took out of the mechanism since the start, per kind of
+        #: CONSTRAINT_KINDS [J]
+        self.absorbed_by = {k: 0.0 for k in CONSTRAINT_KINDS}
+        self.absorbed = 0.0  #: their sum [J]
         self.gains: list[tuple[int, float, float]] = []  #: (step, rise [J], allowed [J]) of unexplained rises
         self.steps = 0
         self._v = self._qvel()
@@ -209,8 +245,10 @@ class RestEnergy:
     def update(self) -> float:
         """After an ``mj_step``: the account now [J]; a rise beyond the bound is listed and warned."""
         v = self._qvel()
-        f = limit_force(self.model, self.data)
-        self.absorbed -= self.model.opt.timestep * float(f @ (0.5 * (self._v + v)))
+        vm = 0.5 * (self._v + v)
+        for k, f in constraint_forces(self.model, self.data).items():
+            self.absorbed_by[k] -= self.model.opt.timestep * float(f @ vm)
+        self.absorbed = float(sum(self.absorbed_by.values()))
         T0, P0, before = self.kinetic, self._power, self.total
         self.total = self._account(v)
         self.steps += 1
@@ -222,10 +260,11 @@ class RestEnergy:
             self.gains.append((self.steps, rise, allowed))
             if len(self.gains) == 1:
                 warnings.warn(f"energy at rest rose by {rise:.3g} J in step {self.steps} (allowed {allowed:.3g} J): "
-                              "kinetic + potential + the MSF contacts' stored energy + the energy the joint limits "
-                              "took (engines.mujoco.robots.RestEnergy) is not explained by the account; warned "
+                              "kinetic + potential + the MSF contacts' stored energy + the energy MuJoCo's "
+                              "constraints took (engines.mujoco.robots.RestEnergy) is not explained by the account; warned "
                               "once, every such step is listed in RestEnergy.gains", RuntimeWarning, stacklevel=2)
         return self.total
 
 
-__all__ = ["FLOOR", "REST_GAIN_RTOL", "RestEnergy", "limit_force", "load_with_msf_floor", "mechanical_energy"]
+__all__ = ["CONSTRAINT_KINDS", "FLOOR", "REST_GAIN_RTOL", "RestEnergy", "constraint_forces", "limit_force",
+           "load_with_msf_floor", "mechanical_energy"]

@@ -846,23 +846,24 @@ class PybulletAdapter(EngineAdapter):
                 self.limit_stops += 1
 
     def _rest_together(self) -> None:
-        """The contacts on a multibody none of whose joints is at a limit are
-        solved as one island also at rest (ContactManager.set_together); the
-        others' resting contacts take the settled path one by one. The settled
-        path steps each resting foot alone, the others' forces entering its
-        a_ext a step late: pybullet's ant put down on its feet (free hinges)
-        at 10 ms rose 1.31 J above its running minimum, 0.51 J solved together
-        (scripts/pybullet_robots.py ant). With a joint at a limit the coupled
-        solve takes it as held (_minv), which pybullet's one-sided limit is
-        not: the ant resting on its ankle limits after its torques rocked by
-        ~80 J in one island, and rose 2.2 J where the settled path rose
-        0.36 J (benchmarks robots_pybullet)."""
-        together = np.zeros(len(self.pairs), bool)
+        """The contacts on a multibody one of whose joints is at a limit are
+        held apart at rest (ContactManager.set_together): when all of their
+        connected contacts rest they take the settled path one by one; every
+        other set of resting contacts is one island (the manager's default,
+        issue 13). The settled path steps each resting foot alone, the others'
+        forces entering its a_ext a step late: pybullet's ant put down on its
+        feet (free hinges) at 10 ms rose 1.31 J above its running minimum,
+        0.51 J solved together (scripts/pybullet_robots.py ant). With a joint
+        at a limit the coupled solve takes it as held (_minv), which
+        pybullet's one-sided limit is not: the ant resting on its ankle limits
+        after its torques rocked by ~80 J in one island, and rose 2.2 J where
+        the settled path rose 0.36 J (benchmarks robots_pybullet)."""
+        together = np.ones(len(self.pairs), bool)
         for uid in {int(self._b_uid[j]) for j in self._art_slots}:
             q, _, _ = self._multibody(uid)
-            if not self._held_dofs(uid, q).size:
+            if self._held_dofs(uid, q).size:
                 side = self._b_art[self._slot] & (self._b_uid[self._slot] == uid)
-                together |= side[:, 0] | side[:, 1]
+                together &= ~(side[:, 0] | side[:, 1])
         self.manager.set_together(together)
 
     def _limits_of(self, uid) -> np.ndarray:
