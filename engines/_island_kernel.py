@@ -55,7 +55,7 @@ EV_NONE, EV_END, EV_ON = 0, 1, 2
 
 
 @jit
-def _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, dy, F,
+def _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, eb, in_c, y, dy, F,
          buf, want):
     """dy/dt of the island's rows r0..r1-1 (step_island's _Island.rhs):
     rows in contact by engines._kernel.rhs, the others moving freely
@@ -78,7 +78,8 @@ def _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, 
         if want:
             F[r, 0] = Fn
             F[r, 1] = Ft
-    for b in range(cb0, cb1):
+    for e in range(cb0, cb1):  # the entries whose row q is in contact (eb, _island): a free row has no force
+        b = eb[e]
         pr, qr = cp[b], cq[b]
         f0, f1, f2 = dy[qr, P], dy[qr, P + 1], dy[qr, P + 2]
         for i in range(3):
@@ -87,29 +88,29 @@ def _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, 
 
 
 @jit
-def _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, h, out,
+def _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, eb, in_c, y, h, out,
          work, F, buf, k1_ready):
     """One classical RK4 step of the island of length h from y into out (rows
     r0..r1-1); F[r] = (F_n, |F_t|) at y unless k1_ready (work[0] then holds
     the slope at y from an earlier call from the same y). work (5, k, NY)."""
     k1, k2, k3, k4, yt = work[0], work[1], work[2], work[3], work[4]
     if not k1_ready:
-        _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, k1, F,
-             buf, True)
+        _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, eb, in_c, y,
+             k1, F, buf, True)
     for r in range(r0, r1):
         for j in range(NY):
             yt[r, j] = y[r, j] + 0.5 * h * k1[r, j]
-    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, yt, k2, F,
+    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, eb, in_c, yt, k2, F,
          buf, False)
     for r in range(r0, r1):
         for j in range(NY):
             yt[r, j] = y[r, j] + 0.5 * h * k2[r, j]
-    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, yt, k3, F,
+    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, eb, in_c, yt, k3, F,
          buf, False)
     for r in range(r0, r1):
         for j in range(NY):
             yt[r, j] = y[r, j] + h * k3[r, j]
-    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, yt, k4, F,
+    _rhs(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, eb, in_c, yt, k4, F,
          buf, False)
     for r in range(r0, r1):
         for j in range(NY):
@@ -142,7 +143,7 @@ def _g_end(code, lc, oc, p, Y, r, n, xs, Bs):
 
 
 @jit
-def _root(kind, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c,
+def _root(kind, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, eb, in_c,
           y, h, lo, hi, g_lo, g_hi, xs, Bs, tmp, work, F, buf, root_iter, root_tol):
     """Illinois regula falsi for th in [lo, hi], g(lo) > 0 >= g(hi), g of row r at
     the island state rk4(y, th h) (engines._contacts.reference._find_root for
@@ -156,7 +157,7 @@ def _root(kind, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes
         th, at_hi = K.illinois_next(lo, hi, g_lo, g_hi)
         if at_hi:
             return hi
-        _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y,
+        _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, eb, in_c, y,
              th * h, tmp, work, F, buf, True)
         if kind == 0:
             gt = _xd(tmp, r, n)
@@ -192,13 +193,22 @@ def _stiff_step(r0, r1, pairs, n, W, kg, codes, LC, oc, in_c, y, buf, substeps):
 
 @jit
 def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq,
-            Wcpq, t0, dt, hp, y, in_c, t_loc, phase, nseg, status, ended_by, turned, fl, ints, buf, work, Y1, Yt, tmp,
-            F, sc):
+            Wcpq, eb, t0, dt, hp, y, in_c, t_loc, phase, nseg, status, ended_by, turned, fl, ints, buf, work, Y1, Yt,
+            tmp, F, sc):
     """Move island i on from t_loc[i] (module docstring); returns IS_DONE,
     IS_STOP (rows with status ST_ONSET/ST_ENDED for the caller) or IS_OVER
     (more than max_segments segments)."""
     r0, r1 = io[i], io[i + 1]
     cb0, cb1 = cio[i], cio[i + 1]
+    # the coupling entries whose row q carries a force (in contact: in_c holds through the call), in their
+    # order, into eb[cb0:cb1]: a free row's dy[q, P] is zero, so its entries add exactly nothing (and
+    # skipping them in the loop by a branch cost as much as their arithmetic, the rows' in_c being random)
+    ne = cb0
+    for b in range(cb0, cb1):
+        if in_c[cq[b]]:
+            eb[ne] = b
+            ne += 1
+    cb1 = ne
     riter, rtol = int(cst[K.C_RITER]), cst[K.C_RTOL]
     for r in range(r0, r1):
         status[r] = ST_DONE
@@ -259,8 +269,8 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
         nsub = max(1, int(math.ceil(rem / h_isl - 1e-9)))
         h = rem / nsub
         for _s in range(nsub):
-            _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y, h,
-                 Y1, work, F, buf, False)
+            _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, eb, in_c, y,
+                 h, Y1, work, F, buf, False)
             ints[2] += 1
             for r in range(r0, r1):
                 sc[r, SC_LO] = 0.0
@@ -284,8 +294,8 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
                 xd0, xd1 = sc[r, SC_XD0], sc[r, SC_XD1]
                 if in_c[r] and not turned[p] and xd0 > 0 and xd1 <= 0:
                     th = _root(0, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq,
-                               Wpq, Wcpq, in_c, y, h, 0.0, 1.0, xd0, xd1, 1.0, 1.0, tmp, work, F, buf, riter, rtol)
-                    _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq,
+                               Wpq, Wcpq, eb, in_c, y, h, 0.0, 1.0, xd0, xd1, 1.0, 1.0, tmp, work, F, buf, riter, rtol)
+                    _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, eb,
                          in_c, y, th * h, Yt, work, F, buf, True)
                     turned[p] = True
                     fl[K.F_TAU1, p] = t0 + t_loc[i] + th * h - fl[K.F_TONSET, p]
@@ -333,7 +343,7 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
                 code, lc = codes[kr], LC[kr]
                 lo = sc[r, SC_LO]
                 if lo > 0:
-                    _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq,
+                    _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, eb,
                          in_c, y, lo * h, Yt, work, F, buf, True)
                     Ylo = Yt
                 else:
@@ -346,7 +356,7 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
                     g_lo = 1e-300
                 g_hi = _g_end(code, lc, oc, p, Y1, r, n, xs, Bs)
                 th = _root(1, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq,
-                           Wcpq, in_c, y, h, lo, 1.0, g_lo, g_hi, xs, Bs, tmp, work, F, buf, riter, rtol)
+                           Wcpq, eb, in_c, y, h, lo, 1.0, g_lo, g_hi, xs, Bs, tmp, work, F, buf, riter, rtol)
                 sc[r, SC_TH] = th
                 if th < th_star:
                     th_star = th
@@ -354,12 +364,12 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
                 if sc[r, SC_EV] != EV_ON:
                     continue
                 th = _root(2, r, r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq,
-                           Wcpq, in_c, y, h, 0.0, 1.0, -sc[r, SC_G0], -sc[r, SC_G1], 1.0, 1.0, tmp, work, F, buf,
+                           Wcpq, eb, in_c, y, h, 0.0, 1.0, -sc[r, SC_G0], -sc[r, SC_G1], 1.0, 1.0, tmp, work, F, buf,
                            riter, rtol)
                 sc[r, SC_TH] = th
                 if th < th_star:
                     th_star = th
-            _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, in_c, y,
+            _rk4(r0, r1, cb0, cb1, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp, cq, Wpq, Wcpq, eb, in_c, y,
                  th_star * h, Yt, work, F, buf, True)
             t_loc[i] = t_loc[i] + th_star * h
             for r in range(r0, r1):
@@ -380,7 +390,7 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
 
 @jit
 def advance_islands(cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc, cp,
-                    cq, Wpq, Wcpq, t0, dt, hp, y, in_c, t_loc, phase, nseg, ist, status, ended_by, turned, fl, ints,
+                    cq, Wpq, Wcpq, eb, t0, dt, hp, y, in_c, t_loc, phase, nseg, ist, status, ended_by, turned, fl, ints,
                     buf, work, Y1, Yt, tmp, F, sc):
     """Move every island whose ist is IS_RUN (module docstring); ist[i]
     becomes IS_DONE, IS_STOP (the caller handles its rows' status and sets
@@ -391,7 +401,7 @@ def advance_islands(cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a,
         if ist[i] != IS_RUN:
             continue
         st = _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, paper, Lr, kg, codes, LC, oc,
-                     cp, cq, Wpq, Wcpq, t0, dt, hp, y, in_c, t_loc, phase, nseg, status, ended_by, turned, fl, ints,
+                     cp, cq, Wpq, Wcpq, eb, t0, dt, hp, y, in_c, t_loc, phase, nseg, status, ended_by, turned, fl, ints,
                      buf, work, Y1, Yt, tmp, F, sc)
         ist[i] = st
         if st != IS_DONE:
