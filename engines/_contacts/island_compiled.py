@@ -109,11 +109,12 @@ def step_islands(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, io, cio, cp, cq, W
     F = np.zeros((k, 2))
     sc = np.zeros((k, IK.NSC))
     eb = np.empty(cp.size, np.int64)  # the kernel's list of coupling entries with a force
+    ri = np.zeros((k, IK.NRI), np.int64)  # and its row index scratch (marks start at zero)
     rows = _Rows(n, W, a, L)
     isl_of = np.repeat(np.arange(m), np.diff(io))
     while True:
         stopped = IK.advance_islands(_KCST, float(SUBSTEPS_PER_CONTACT), MAX_SEGMENTS, io, cio, p, n, T, W, Wc, a,
-                                     paper, Lr, kg, mgr._kcodes, mgr._kLC, mgr._oc, cp, cq, Wpq, Wcpq, eb, t0, dt,
+                                     paper, Lr, kg, mgr._kcodes, mgr._kLC, mgr._oc, cp, cq, Wpq, Wcpq, eb, ri, t0, dt,
                                      mgr.h, y, in_c, t_loc, phase, nseg, ist, status, ended_by, mgr.turned, mgr._fl,
                                      ints, buf, work, Y1, Yt, tmp, F, sc)
         if not stopped:
