@@ -119,7 +119,7 @@ from engines.base import (
     PairSpec,
     check_law_curvature,
 )
-from engines.mujoco import _held
+from engines.mujoco import _held, _resting
 from engines.mujoco._stepping import StepTracker
 from msf_contact._validate import ValidityWarning
 
@@ -628,9 +628,18 @@ class MujocoAdapter(EngineAdapter):
                 self.manager.own_gap[q.index] = True
         self._required = np.zeros(len(self._pairs), bool)  # _compute_compiled's scratch
         self._fk_bufs = None  # the free group's kinematics arrays (_compute_compiled)
+        #: a resting step in one compiled call (engines.mujoco._resting; compiled only); False: the
+        #: general path, which it is tested against
+        self.fused = self.compiled
+        self._rest_args = None  # its arguments (engines.mujoco._resting._args)
+        self._all_msf = True  # every pair on MSF (set_mode)
+        self._rest_kin = None  # the kinematics the last resting step made (engines.mujoco._resting.step)
         self._any_link = bool(self._link_pairs.any())  # _check_deep_onsets has nothing to look at without one
         self._rk4_checked = None
         self._warn_rk4_links()
+        # the adapter's own conditions for the resting step in one call (engines.mujoco._resting.eligible)
+        self._fused_static = bool(self.compiled and not self._slow and self._fast.index.size and not self._shared
+                                  and not self._any_link)
         #: contacts found deep at their onset on a link (flagged; _check_deep_onsets)
         self.deep_onsets = 0
         self._deep_warned: set[int] = set()
@@ -827,7 +836,8 @@ class MujocoAdapter(EngineAdapter):
                 self._jump()
             self._in_hook = True
             try:
-                self._compute()
+                if self._compute():
+                    return  # the resting step applied its forces itself (engines.mujoco._resting)
             finally:
                 self._in_hook = False
         # the lever arm from each body's centre of mass is held fixed in world axes
@@ -865,6 +875,7 @@ class MujocoAdapter(EngineAdapter):
             self.manager.interrupt(leaving, f"switched to {mode!r} by set_mode")
         self._have_last[slots] = False
         self._mode[slots] = code
+        self._all_msf = not self._mode.any()
         if self._installed:
             self._apply_modes()
 
@@ -1231,16 +1242,17 @@ class MujocoAdapter(EngineAdapter):
             g = np.zeros(3)
         return (0.0 if p.fixed1 else 1.0) * g - (0.0 if p.fixed2 else 1.0) * g
 
-    def _compute(self) -> None:
+    def _compute(self) -> bool:
         """Read the kinematics of every candidate pair, call the manager once,
         and keep the forces to apply in every hook call of this step. Pairs of
         a free sphere and a plane, a fixed body or another free sphere are
         read for all of them at once (:class:`_FreeGroup`, or compiled:
         :meth:`_compute_compiled`); the others (links of chains, box faces)
-        through MuJoCo's Jacobians pair by pair."""
+        through MuJoCo's Jacobians pair by pair. Returns True when the step's
+        forces were also applied to qfrc_passive for this hook call (a resting
+        step in one compiled call, engines.mujoco._resting)."""
         if self.compiled:
-            self._compute_compiled()
-            return
+            return self._compute_compiled()
         m, d = self.model, self.data
         dt = self.timestep
         P = len(self._pairs)
@@ -1274,7 +1286,7 @@ class MujocoAdapter(EngineAdapter):
         force = np.asarray(out.force, dtype=float)
         hit = np.any(force != 0.0, axis=1)
         if not np.any(hit):
-            return
+            return False
         # what the next step's a_ext leaves out (module docstring): the generalised impulse
         # J_q^T P_q of every pair's force of this step, except the held forces (held_forces),
         # which stay in the other pairs' a_ext as their prediction for the next step; the
@@ -1293,11 +1305,20 @@ class MujocoAdapter(EngineAdapter):
         for k in np.flatnonzero(keep):
             i = int(pair[k])
             self._last_dv[i] += kin.W[k] @ (force[k] * dt)
+        return False
 
-    def _compute_compiled(self) -> None:
+    def _compute_compiled(self) -> bool:
         """:meth:`_compute` with the free group's work in :mod:`engines.mujoco._kernels`
         (the same arithmetic, tests/test_mujoco_kernels.py), reading the MjData
         arrays directly; the slow pairs as in :meth:`_compute`."""
+        if self.fused and _resting.eligible(self):
+            # the resting step in one compiled call (engines.mujoco._resting); if the step is not a
+            # resting one it stops after the free group's kinematics and the general path goes on
+            done, applied, n = _resting.step(self, CANDIDATE_FACTOR)
+            if done:
+                return applied
+            self._compute_rest(self._fast_rows(n), self._fk_bufs[9], self._fk_bufs[10])
+            return False
         K = self._kernels
         m, d, mgr = self.model, self.data, self.manager
         dt = self.timestep
@@ -1309,25 +1330,52 @@ class MujocoAdapter(EngineAdapter):
             # into the group's arrays kept from step to step (nothing allocated or freed per step:
             # the rows are this step's until the next _compute, which is all the manager and
             # contact_forces read them for)
-            b = self._fk_bufs
-            if b is None:
-                k = self._gi.shape[0]
-                b = self._fk_bufs = (np.empty(k, np.int64), np.empty(k), np.empty((k, 3)), np.empty((k, 3)),
-                                     np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3, 3)), np.empty((k, 3, 3)),
-                                     np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 4)))
+            b = self._fk_buffers()
             err, n = K.free_kinematics_into(
                 self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat, required,
                 self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push,
                 self._last_r, self._last_gap, *self._held_geometry(required), *b)
-            pair, x, nrm, point, v_rel, v_com, W, W_com, a_ext = (a[:n] for a in b[:9])
             p1, p2 = b[9], b[10]
             if err != K.ERR_NONE:
-                for _ in f._detect(d, d.geom_xpos[f.g1]):  # the numpy detection says what is wrong
-                    pass
-                raise RuntimeError(f"free-group detection failed (code {err}) where the numpy detection passes")
-            fast = dict(pair=pair, x=x, normal=nrm, point=point, v_rel=v_rel, v_com_rel=v_com, W=W, W_com=W_com,
-                        a_ext=a_ext)
+                self._detection_failed(err)
+            fast = self._fast_rows(n)
             self._p1[self._fast_at], self._p2[self._fast_at] = p1, p2
+        self._compute_rest(fast, p1, p2)
+        return False
+
+    def _fast_rows(self, n: int) -> dict:
+        """The free group's n candidate rows in its kinematics buffers, as ContactKinematics fields."""
+        pair, x, nrm, point, v_rel, v_com, W, W_com, a_ext = (a[:n] for a in self._fk_bufs[:9])
+        return dict(pair=pair, x=x, normal=nrm, point=point, v_rel=v_rel, v_com_rel=v_com, W=W, W_com=W_com,
+                    a_ext=a_ext)
+
+    def _detection_failed(self, err: int) -> None:
+        """Raise for the free-group detection's error code ``err``: the numpy detection says what
+        is wrong."""
+        f, d = self._fast, self.data
+        for _ in f._detect(d, d.geom_xpos[f.g1]):
+            pass
+        raise RuntimeError(f"free-group detection failed (code {err}) where the numpy detection passes")
+
+    def _fk_buffers(self) -> tuple:
+        """The free group's kinematics arrays, kept from step to step (nothing allocated or
+        freed per step: the rows are this step's until the next _compute, which is all the
+        manager and contact_forces read them for)."""
+        b = self._fk_bufs
+        if b is None:
+            k = self._gi.shape[0]
+            b = self._fk_bufs = (np.empty(k, np.int64), np.empty(k), np.empty((k, 3)), np.empty((k, 3)),
+                                 np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3, 3)), np.empty((k, 3, 3)),
+                                 np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 4)))
+        return b
+
+    def _compute_rest(self, fast: dict | None, p1, p2) -> None:
+        """:meth:`_compute_compiled` after the free group's kinematics (``fast``: its candidate
+        rows, None without a free group; p1, p2: its contact points)."""
+        K = self._kernels
+        m, d, mgr = self.model, self.data, self.manager
+        dt = self.timestep
+        required = self._required
         slow, points, jacs = self._slow_rows(required) if self._slow else (None, {}, [])
         self._keep_points(points)
         self._apply = []
@@ -1358,6 +1406,18 @@ class MujocoAdapter(EngineAdapter):
             float(d.time) + dt, SETTLE_AFTER_DURATIONS, STEPS_PER_CONTACT_MIN, mgr.dt,
             p1 if p1 is not None else self._no_points, p2 if p2 is not None else self._no_points, d.xipos,
             kin.W, self._last_dv, dt)
+        self._after_forces(kin, fast is not None, p1, p2, points, jacs, Qc, pair, force, hit, keep, n_hit, n_unheld,
+                           todo)
+
+    def _after_forces(self, kin, fast: bool, p1, p2, points, jacs, Qc, pair, force, hit, keep, n_hit, n_unheld,
+                      todo) -> None:
+        """:meth:`_compute_rest` after ``after_step`` (its outputs hit, keep, n_hit, n_unheld and
+        todo, the free group's forces to apply; fast: the adapter has a free group): what the hook
+        applies in every call of the step, and the next step's a_ext bookkeeping (the impulses that
+        leave it)."""
+        K = self._kernels
+        m, d = self.model, self.data
+        dt = self.timestep
         if not n_hit:
             return
         if todo[0].shape[0]:
@@ -1374,7 +1434,7 @@ class MujocoAdapter(EngineAdapter):
             self._last_dv[pair[keep]] = 0.0
         # the impulses that leave the next step's a_ext (with the couples of the moving contact points)
         Q = np.zeros(m.nv) if Qc is None else Qc
-        if fast is not None:
+        if fast:
             sub = K.free_forces(self._gi, self._group_of, pair, force, hit, keep, True, p1, p2, d.xipos)
             K.apply(Q, d.xipos, d.xanchor, d.xmat, *sub)
         if self._slow:
@@ -1384,7 +1444,7 @@ class MujocoAdapter(EngineAdapter):
             dq = np.zeros((1, m.nv))
             mujoco.mj_solveM(m, d, dq, Qdt.reshape(1, -1))
             dq = dq[0]
-            if fast is not None:
+            if fast:
                 K.velocity_change(self._gi, dq, d.xmat, d.xanchor, p1, p2, self._last_dv)
             for i, J in jacs:
                 self._last_dv[i] = J @ dq
