@@ -352,7 +352,8 @@ def test_off_image_is_the_step_trackers_numpy_test():
     in one pass) answers as the numpy test it replaced, |image - qpos| >
     JUMP_VTOL h (1 + max |qvel|) + 1e-13 (1 + |q0|) per coordinate, on random states: the
     image itself, one coordinate moved just past and just inside the bound,
-    and NaN in qvel (every tolerance NaN: nothing compares off) or in qpos."""
+    NaN in qvel (every tolerance NaN: nothing compares off) or in qpos, and
+    inf in qvel (max |qvel| is taken from the bit patterns: inf, not NaN)."""
     from engines.mujoco._kernels import off_image
     from engines.mujoco._stepping import JUMP_VTOL
 
@@ -371,7 +372,7 @@ def test_off_image_is_the_step_trackers_numpy_test():
         qpos = img.copy()
         i = int(rng.integers(nq))
         tol = JUMP_VTOL * h * (1.0 + np.max(np.abs(qvel))) + 1e-13 * (1.0 + abs(q0[i]))
-        kind = trial % 5
+        kind = trial % 6
         if kind == 1:
             qpos[i] += 1.5 * tol
         elif kind == 2:
@@ -381,6 +382,9 @@ def test_off_image_is_the_step_trackers_numpy_test():
             qpos[i] += 1.0
         elif kind == 4:
             qpos[i] = np.nan
+        elif kind == 5:
+            qvel[i] = np.inf
+            qpos[(i + 1) % nq] = np.nan
         want = numpy_off(img, qpos, q0, qvel)
         bad = np.ones(nq, bool)
         assert off_image(img, qpos, q0, qvel, h, JUMP_VTOL, bad) == bool(want.any())

@@ -431,6 +431,16 @@ def required_mask(active, Jst, out):
         out[q] = active[q] or Jst[q, 0] != 0.0 or Jst[q, 1] != 0.0 or Jst[q, 2] != 0.0
 
 
+#: the bits of a double but its sign; the bit pattern of +inf (a NaN's, sign cleared, lie above it)
+_ABS_BITS, _INF_BITS = 0x7FFFFFFFFFFFFFFF, 0x7FF0000000000000
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _as_float(bits):
+    """The double whose bit pattern is the int64 ``bits``."""
+    return np.array([bits], np.int64).view(np.float64)[0]
+
+
 @njit(cache=True, error_model="numpy")
 def off_image(q_img, qpos, q0, qvel, h, vtol, bad):
     """Whether any coordinate of qpos is off the step's image q_img (nq,):
@@ -438,13 +448,16 @@ def off_image(q_img, qpos, q0, qvel, h, vtol, bad):
     engines.mujoco._stepping.StepTracker for the semi-implicit integrators,
     in one pass; bad (nq,) bool: which (a NaN anywhere compares False, as
     numpy's: a NaN in qvel makes every tolerance NaN)."""
-    vmax = 0.0
-    nan = False
-    for i in range(qvel.shape[0]):  # branch-free loops (vectorised)
-        a = abs(qvel[i])
-        nan |= a != a
-        vmax = a if a > vmax else vmax
-    tq = vtol * h * (1.0 + vmax) if not nan else np.nan
+    # max |qvel| as the largest bit pattern of |qvel| (int64 view, sign bit cleared): non-negative
+    # doubles order as their bit patterns and a NaN lies above inf, so the integer maximum, which
+    # vectorises where a float one may not (NaN), is the float maximum exactly, and above _INF_BITS
+    # when a NaN is there
+    bits = qvel.view(np.int64)
+    m = 0
+    for i in range(bits.shape[0]):
+        b = bits[i] & _ABS_BITS
+        m = b if b > m else m
+    tq = vtol * h * (1.0 + _as_float(m)) if m <= _INF_BITS else np.nan
     off = False
     for i in range(qpos.shape[0]):
         b = abs(q_img[i] - qpos[i]) > tq + 1e-13 * (1.0 + abs(q0[i]))
