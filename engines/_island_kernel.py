@@ -338,9 +338,14 @@ def _island(i, cst, substeps, max_segments, io, cio, pairs, n, T, W, Wc, a, pape
             if dt - t_loc[i] <= 0.0:
                 return IS_DONE
             # contacts that begin now (x >= 0 with a closing speed; touching at rest while the island pushes)
+            # (a row that begins now pushes too: a sphere touching the plate at rest under another
+            # beginning its contact with it at the same instant, islands.step_island)
             any_in = False
             for r in range(r0, r1):
                 any_in = any_in or in_c[r]
+                if not in_c[r]:
+                    xr, xd = y[r, X], _xd(y, r, n)
+                    any_in = any_in or (xr >= 0 and xd >= 0 and (xr > 0 or xd > 0))
             nnow = 0
             for r in range(r0, r1):
                 if in_c[r]:

@@ -13,13 +13,14 @@ from .materials import ContactPair, Material, PronySeries, TabulatedMasterCurve,
 from .record import CONTRACT_KEYS, ImpactRecord
 from .chain import ChainResult, simulate_chain
 from .solver import Body, reduced_mass, simulate_impact
+from .statics import column_loads, static_overlap
 from .viscoelastic import Relaxation, exact_normal_impact, viscoelastic_impact
 
 __all__ = [
     "Body", "CONTRACT_KEYS", "ChainResult", "ContactGeometry", "ContactPair", "Curvature", "ForceLaw", "HertzLaw",
     "HuntCrossleyLaw", "ImpactRecord", "KP_MODES", "KuwabaraKonoLaw", "LAWS", "MSFLaw", "Material",
     "PronySeries", "Relaxation", "SpringDashpotLaw", "TabulatedMasterCurve", "ValidityWarning", "WLF", "closed_forms",
-    "exact_normal_impact", "get_law", "make_law", "preset", "preset_names", "reduced_mass", "simulate_chain",
-    "simulate_impact", "viscoelastic_impact",
+    "column_loads", "exact_normal_impact", "get_law", "make_law", "preset", "preset_names", "reduced_mass", "simulate_chain",
+    "simulate_impact", "static_overlap", "viscoelastic_impact",
 ]
 __version__ = "0.1.0"

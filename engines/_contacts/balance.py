@@ -65,26 +65,7 @@ import numpy as np
 
 from msf_contact._validate import ValidityWarning
 
-from .state import ENERGY_GAIN_RTOL, V_ONSET_MIN
-
-
-#: Gauss-Legendre nodes and weights on [0, 1] for the elastic energy (elastic_energy).
-_GL_S, _GL_W = np.polynomial.legendre.leggauss(8)
-_GL_S, _GL_W = 0.5 * (_GL_S + 1.0), 0.5 * _GL_W
-
-
-def elastic_energy(law, x, onset) -> np.ndarray:
-    """Elastic energy of the law's normal force at overlap x [m] (k,): int_0^x
-    F_n(x', 0) dx' [J] (the rate-free force is the elastic part, as the
-    settled path's F_n(x_e, 0)), by 8-point Gauss-Legendre after x' = x s^2
-    (F ~ x'^(3/2) near 0 becomes ~ s^3 x: smooth; exact to ~1e-12 for Hertz)."""
-    x = np.asarray(x, dtype=float)
-    if x.size == 0:
-        return np.zeros(0)
-    xs = x[:, None] * _GL_S[None, :] ** 2  # (k, 8)
-    o = {key: np.repeat(np.asarray(val, dtype=float), _GL_S.size) for key, val in onset.items()}
-    F = law.contact_normal_force(xs.reshape(-1), np.zeros(xs.size), o).reshape(xs.shape)
-    return np.sum(F * (2.0 * x[:, None] * _GL_S[None, :]) * _GL_W[None, :], axis=1)
+from .state import ENERGY_GAIN_RTOL, V_ONSET_MIN, elastic_energy
 
 
 class IslandBalance:

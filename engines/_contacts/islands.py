@@ -33,7 +33,11 @@ that put energy in at rest (MuJoCo's ant in a user's loop,
 scripts/rest_energy.py ant.xml --torque-steps 200 --rest-steps 600 --seed 3
 --unit-controls: 58 rest steps above RestEnergy's bound, up to 1.3 mJ;
 none solved in its island). A resting row in an island keeps its resting
-relaxation (state.relax, energy-funded inside the island). An adapter may
+relaxation (state.relax, energy-funded inside the island). An island of
+free bodies whose contacts all rest is solved as one settled
+(backward-Euler) step of all its rows (engines._contacts.resting: exact
+static balance at any dt, a resting pile's cost), and by RK4 as here
+where that solve fails. An adapter may
 hold sets apart (ContactManager.set_together: pybullet's multibodies with
 a joint at a limit, whose coupled solve would take the one-sided limit as
 held): a set of resting contacts only with a row held apart takes the
@@ -300,7 +304,12 @@ def step_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq, 
         # row touching at rest while the island pushes: it closes from the next instant on)
         xd = isl.xdot(y)
         touching = (y[:, _X] >= 0) & (xd >= 0)
-        now = ~in_c & touching & ((y[:, _X] > 0) | (xd > 0) | bool(np.any(in_c)))
+        closing = ~in_c & touching & ((y[:, _X] > 0) | (xd > 0))
+        # a row that begins now pushes too: a sphere touching the plate at rest (x = x' = 0) under a
+        # sphere whose contact with it begins at the same instant (a column placed at touching) was
+        # left to free flight, found 4.9 um deep a step later (g dt^2 / 2 at 1 ms), and the engine's
+        # body rested that much below the static overlap
+        now = closing | (~in_c & touching & bool(np.any(in_c) or np.any(closing)))
         if np.any(now):
             _begin_rows(mgr, p, np.flatnonzero(now), y, rows, t0 + t_loc)
             in_c[now] = True

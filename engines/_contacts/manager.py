@@ -23,6 +23,7 @@ from .reference import NumpyPath
 from .balance import IslandBalance
 from .island_compiled import island_blocks, step_islands
 from .islands import TOUCH_TOL, island_lever, islands, step_island
+from .resting import settle_island
 from .state import (
     L_G0, L_ON, L_W01, L_W11, L_XREF, NL, NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES,
     _cross, _dot, _name,
@@ -678,10 +679,26 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         if self._balance is not None:  # each island's bodies, for one probe call
             bk = [np.unique(k[k >= 0]) for k in np.split(keys_all[pp_all], io[1:-1])]
             self._balance.open_many(self, pp_all, io, np.concatenate(bk), np.cumsum([0] + [b.size for b in bk]))
+        # resting islands of free bodies (own_gap: the adapters' free spheres and free bodies on fixed
+        # ones; links keep the RK4 island): one settled step of all their rows (engines._contacts.resting),
+        # else RK4 below
+        done = np.zeros(io.size - 1, bool)
+        if self.settled_path and R.size:
+            rest = np.logical_and.reduceat(self._rest_rows[R] & self.own_gap[pp_all], io[:-1])
+            for i in np.flatnonzero(rest):
+                r = R[io[i]:io[i + 1]]
+                e = slice(cio[i], cio[i + 1])
+                P = settle_island(self, pair[r], x[r], n[r], v[r], vc[r], W[r], Wc[r], a_R[io[i]:io[i + 1]], t0,
+                                  info, cp[e] - io[i], cq[e] - io[i], Wpq[e], Wcpq[e],
+                                  None if L is None else L[io[i]:io[i + 1]])
+                if P is not None:
+                    force[r] = P / self.dt
+                    done[i] = True
         # the compiled path for the islands whose every row's law the kernel knows (island_compiled)
         kern = np.zeros(io.size - 1, bool)
         if self.island_compiled:
             kern = np.logical_and.reduceat(self._kg_of_pair[pp_all] >= 0, io[:-1]) if R.size else kern
+        kern &= ~done
         if np.any(kern):
             sel = np.flatnonzero(kern)
             rows = np.concatenate([np.arange(io[i], io[i + 1]) for i in sel])
@@ -697,7 +714,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
                              remap[cp[ent]], remap[cq[ent]], Wpq[ent], Wcpq[ent], self._rest_rows[r],
                              None if L is None else L[rows])
             force[r] = P / self.dt
-        for i in np.flatnonzero(~kern):  # the numpy reference, island by island
+        for i in np.flatnonzero(~kern & ~done):  # the numpy reference, island by island
             r = R[io[i]:io[i + 1]]
             e = slice(cio[i], cio[i + 1])
             P = step_island(self, pair[r], x[r], n[r], v[r], vc[r], W[r], Wc[r], a_R[io[i]:io[i + 1]], t0, info,
