@@ -121,7 +121,7 @@ def rest(integrator: str, torque_steps: int, rest_steps: int) -> None:
                 data.ctrl[:] = rng.uniform(lo, hi)
                 mujoco.mj_step(model, data)
             data.ctrl[:] = 0.0
-            account = RestEnergy(model, data, adapter) if integrator != "rk4" else None
+            account = RestEnergy(model, data, adapter)
             for _ in range(rest_steps):
                 mujoco.mj_step(model, data)
                 E[False].append(mechanical_energy(model, data, data.qvel - adapter.velocity_offset())

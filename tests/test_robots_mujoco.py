@@ -147,12 +147,23 @@ def test_mujocos_own_contact_work_is_in_the_rest_account():
     assert account.gains == []
 
 
-def _pressed_bar(integrator: str, torque: float, pushed: float = 0.0):
+#: How far past its upper end the bar's hinge limit is moved (_pressed_bar): [rad]. Measured at
+#: 0.03 rad: Euler and RK4 no contact found deep at its onset, x_max/R 0.057 and 0.061; with the
+#: limit's force change left out of a_ext (a step late, as before engines.mujoco._known), RK4 has 4
+#: corners found 51 um deep and both leave the small-strain range (x_max/R 0.16, 0.14).
+LIMIT_PAST = 0.03
+
+
+def _pressed_bar(integrator: str, torque: float, pushed: float = 0.0, by_callback: float = 0.0, limit: bool = False):
     """A rubber box bar (100 x 20 x 20 mm, 0.2 kg, edge radius 5 mm: its
     corners touch, solved together) on a hinge at one end, lying 1 mm above a steel floor, no
-    gravity, dt = 10 ms, pressed down by a motor on during steps 10-19 with
-    ``torque`` [N m] and a generalised force ``pushed`` [N m] on the hinge
-    (qfrc_applied) over the same steps, then released: (adapter, warnings)."""
+    gravity, dt = 10 ms, pressed down during steps 10-19 by a motor with
+    ``torque`` [N m], by a generalised force ``pushed`` [N m] on the hinge
+    (qfrc_applied), by the motor's control ``by_callback`` [N m] written in
+    MuJoCo's mjcb_control (called after the contacts' hook), or (``limit``)
+    by a joint limit moved onto the bar (its range set to [-0.5, -LIMIT_PAST]
+    rad: the bar, at 0, is past its upper end); then released:
+    (adapter, warnings)."""
     import warnings
 
     from engines.base import PairSpec
@@ -161,55 +172,72 @@ def _pressed_bar(integrator: str, torque: float, pushed: float = 0.0):
     r = 0.01
     xml = (f'<mujoco><option timestep="0.01" integrator="{integrator}" gravity="0 0 0"/><worldbody>'
            '<geom name="floor" type="plane" size="1 1 0.1"/>'
-           f'<body name="bar" pos="0 0 {r + 0.001}"><joint name="hinge" type="hinge" axis="0 1 0"/>'
+           f'<body name="bar" pos="0 0 {r + 0.001}"><joint name="hinge" type="hinge" axis="0 -1 0" '
+           f'limited="{str(limit).lower()}" range="-1 1"/>'
            f'<geom name="g" type="box" pos="0.05 0 0" size="0.05 {r} {r}" mass="0.2"/></body></worldbody>'
-           '<actuator><motor joint="hinge" gear="1" ctrlrange="-10 10"/></actuator>'
+           '<actuator><motor joint="hinge" gear="-1" ctrlrange="-10 10"/></actuator>'
            '<contact><exclude body1="world" body2="bar"/></contact></mujoco>')
     model = mujoco.MjModel.from_xml_string(xml)
     data = mujoco.MjData(model)
     law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(5e-3))
+    step = [0]
+
+    def control(m, d):
+        d.ctrl[0] = by_callback if 10 <= step[0] < 20 else 0.0
+
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         adapter = MujocoAdapter(model, data, [PairSpec("g", "floor", law)], edge_radii={"g": 5e-3})
-        with installed(adapter):
-            for i in range(40):
-                data.ctrl[0] = torque if 10 <= i < 20 else 0.0
-                data.qfrc_applied[0] = pushed if 10 <= i < 20 else 0.0
-                mujoco.mj_step(model, data)
+        if by_callback:
+            mujoco.set_mjcb_control(control)
+        try:
+            with installed(adapter):
+                for i in range(40):
+                    step[0] = i
+                    if not by_callback:
+                        data.ctrl[0] = torque if 10 <= i < 20 else 0.0
+                    data.qfrc_applied[0] = -pushed if 10 <= i < 20 else 0.0
+                    if limit:
+                        model.jnt_range[0] = (-0.5, -LIMIT_PAST) if 10 <= i < 20 else (-1.0, 1.0)
+                    mujoco.mj_step(model, data)
+        finally:
+            mujoco.set_mjcb_control(None)
     return adapter, [str(w.message) for w in caught]
 
 
 def test_a_link_found_deep_at_its_onset_is_flagged_and_warned():
-    """Never silent (issue 13, the MSF ant): a generalised force the user
-    applies to the hinge (qfrc_applied, 0.1 N m, not an actuator: the
+    """Never silent (issue 13, the MSF ant): the motor's control written by
+    MuJoCo's mjcb_control (0.1 N m, called after the contacts' hook, so the
     contacts' a_ext sees it a step late) switched on inside a step drives
-    the link 1.5 mm toward the floor 1 mm below, where the contacts' free
-    flight (and their own gaps, which take the engine's gap beyond the
+    the link toward the floor 1 mm below, where the contacts' free flight
+    (and their own gaps, which take the engine's gap beyond the
     integrator's lead) do not put it, and its corners begin already
-    overlapping, holding elastic energy no force worked for (measured under
-    Euler: 0.48 mm, 1.4 mJ, 1.8 times the contacts' approach energy, COR
-    1.52; the ant's ankle under RK4 26 mm, 111 J, COR 3.9, when its drives
-    were seen a step late). Each such contact is flagged in its
-    outside_validity and warned once per pair. (The same push by the motor
-    is seen in its step, MujocoAdapter._actuation_change, and the bar's
-    own gaps keep Euler's dt^2 a / 2 lead out: no deep onset.)"""
-    adapter, messages = _pressed_bar("Euler", 0.0, 0.1)
+    overlapping, holding elastic energy no force worked for (the ant's
+    ankle under RK4 26 mm, 111 J, COR 3.9, when its drives were seen a step
+    late). Each such contact is flagged in its outside_validity and warned
+    once per pair."""
+    adapter, messages = _pressed_bar("Euler", 0.0, by_callback=0.1)
     assert adapter.deep_onsets >= 1
     deep = [m for m in messages if "deep at its onset" in m]
     assert deep and len(deep) == len({m.split(":")[0] for m in deep})  # once per pair
     assert any(any("deep at its onset" in note for note in r.outside_validity) for r in adapter.records)
-    assert not any("under RK4" in m for m in messages)
-    motor, _ = _pressed_bar("Euler", 0.1)  # the same push by its motor: 4 contacts found deep before both
-    assert motor.deep_onsets == 0
 
 
-def test_rk4_on_links_is_warned_once_naming_the_fix():
-    """MSF pairs on links of a chain under RK4 (the contact's force held
-    through the four stages, constraint forces seen a step late; free bodies
-    are as under Euler): one RuntimeWarning naming the pairs and the fix."""
-    adapter, messages = _pressed_bar("RK4", 0.0)
-    rk4 = [m for m in messages if "under RK4 on links" in m]
-    assert len(rk4) == 1 and "smaller timestep" in rk4[0] and "('g', 'floor')" in rk4[0]
+@pytest.mark.parametrize("integrator", ["Euler", "RK4"])
+@pytest.mark.parametrize("push", ["motor", "qfrc_applied", "limit"])
+def test_a_push_on_a_link_is_seen_in_its_step(integrator, push):
+    """The same bar pressed by its motor's control set before the step, by
+    qfrc_applied, or by a joint limit moved onto it (a limit engaging inside
+    a step) under Euler and RK4: each is seen by the contacts in its step
+    (engines.mujoco._known: the actuator, user and constraint forces'
+    change since the last step in a_ext; the limit's response in W), so no
+    contact is found deep at its onset, and nothing is warned (RK4 on links
+    is no longer warned). Before: qfrc_applied gave 2 deep onsets under
+    Euler, and RK4 on links warned once."""
+    kw = dict(motor=dict(torque=0.1), qfrc_applied=dict(torque=0.0, pushed=0.1), limit=dict(torque=0.0, limit=True))[push]
+    adapter, messages = _pressed_bar(integrator, **kw)
+    assert adapter.records and adapter.deep_onsets == 0
+    assert not messages, messages
 
 
 #: A pendulum whose only force besides gravity is its joint limit: the
@@ -239,13 +267,101 @@ def test_the_limits_work_is_the_energy_a_pendulum_loses_to_them():
     assert account.gains == []
 
 
-def test_rest_energy_refuses_rk4():
+def test_rest_energy_refuses_rk4_without_the_adapter():
+    """Under RK4 the limits' forces of the four stages are read by the MSF
+    adapter's hook; without one (adapter None) RestEnergy refuses, naming
+    the integrator and what would make it work."""
     from engines.mujoco.robots import RestEnergy
 
     model = mujoco.MjModel.from_xml_string('<mujoco><option integrator="RK4"/><worldbody><body><freejoint/>'
                                            '<geom size="0.1"/></body></worldbody></mujoco>')
-    with pytest.raises(ValueError, match="RK4"):
+    with pytest.raises(ValueError, match="RK4.*MujocoAdapter.*Euler"):
         RestEnergy(model, mujoco.MjData(model))
+
+
+def test_the_ant_under_rk4_gains_no_energy_at_rest():
+    """ant.xml at its own RK4 and 10 ms (issue 13, "RK4 on links"): 60 steps
+    of the seeded torques, then 60 without. RestEnergy's account under RK4
+    (the limits' work from the four stages' constraint forces the adapter's
+    hook reads, weighted as RK4 weighs them) never rises beyond its bound
+    in a rest step, the limits took energy out, every stage's rows were
+    joint limits, and nothing is warned (RK4 on links no longer is).
+    Measured: 61.3 -> 54.9 J, the limits taking 24.7 J."""
+    import warnings
+
+    from engines.mujoco.robots import RestEnergy
+
+    path = os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml")
+    model, data, pairs = load_with_msf_floor(path, ContactPair(preset("natural-rubber"), preset("steel")))
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
+    rng = np.random.default_rng(SEED)
+    lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        adapter = MujocoAdapter(model, data, pairs)
+        with installed(adapter):
+            for _ in range(60):
+                data.ctrl[:] = rng.uniform(lo, hi)
+                mujoco.mj_step(model, data)
+            data.ctrl[:] = 0.0
+            account = RestEnergy(model, data, adapter)
+            start = account.total
+            for _ in range(60):
+                mujoco.mj_step(model, data)
+                account.update()
+    assert adapter.jumps == 0 and adapter.records
+    assert account.gains == [] and account.mixed == []
+    assert account.total < start and account.absorbed > 0.0
+    assert not any(r.outside_validity for r in adapter.records)
+    assert not caught, [str(w.message) for w in caught]
+
+
+#: A bar pressed into the floor by its joint limit (_pressed_bar's limit, no
+#: motor) at dt = 1 ms against the same at 0.5 ms: the largest approach.
+#: Measured 0.49 % (Euler) and 0.30 % (RK4) with the limit responding in W
+#: (engines.mujoco._known, M_eff); 0.5 ms is within 0.4 % of 0.2 ms
+#: (x_max/R 0.0847 Euler, 0.0849 RK4, converged); with W = J M^-1 J^T, 1 ms
+#: was 8.1 % and 7.8 % below 0.2 ms.
+LIMIT_PRESS_RTOL = 2e-2
+
+
+@pytest.mark.parametrize("integrator", ["Euler", "RK4"])
+def test_a_link_pressed_by_its_limit_is_the_fine_steps_contact(integrator):
+    """The hinged bar pressed into the floor by a joint limit moved 0.03 rad
+    onto it: the joint limit responds to the contact force within the
+    step (MuJoCo's soft constraint: f = -(A + R)^-1 (J qacc_smooth -
+    a_ref)), so the contact's inverse inertia is J M_eff^-1 J^T with the
+    limit's row in M_eff. Its deepest approach at 1 ms is the 0.5 ms
+    run's within LIMIT_PRESS_RTOL."""
+    def x_max(dt):
+        import warnings
+
+        from engines.base import PairSpec
+        from msf_contact import Curvature, make_law
+
+        r = 0.01
+        xml = (f'<mujoco><option timestep="{dt}" integrator="{integrator}" gravity="0 0 0"/><worldbody>'
+               '<geom name="floor" type="plane" size="1 1 0.1"/>'
+               f'<body name="bar" pos="0 0 {r + 0.001}"><joint name="hinge" type="hinge" axis="0 -1 0" '
+               'limited="true" range="-1 1"/>'
+               f'<geom name="g" type="box" pos="0.05 0 0" size="0.05 {r} {r}" mass="0.2"/></body></worldbody>'
+               '<contact><exclude body1="world" body2="bar"/></contact></mujoco>')
+        model = mujoco.MjModel.from_xml_string(xml)
+        data = mujoco.MjData(model)
+        law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(5e-3))
+        with warnings.catch_warnings():
+            warnings.simplefilter("error")
+            adapter = MujocoAdapter(model, data, [PairSpec("g", "floor", law)], edge_radii={"g": 5e-3})
+            n = int(round(0.01 / dt))
+            with installed(adapter):
+                for i in range(13 * n):
+                    model.jnt_range[0] = (-0.5, -LIMIT_PAST) if n <= i < 11 * n else (-1.0, 1.0)
+                    mujoco.mj_step(model, data)
+        assert adapter.deep_onsets == 0 and adapter.records
+        return max(rec.x_max for rec in adapter.records)
+
+    fine, coarse = x_max(5e-4), x_max(1e-3)
+    assert abs(coarse / fine - 1.0) < LIMIT_PRESS_RTOL, (coarse, fine)
 
 
 #: A pendulum's tip against the reference solver's sphere of the tip's
@@ -265,8 +381,7 @@ def test_a_link_under_rk4_bounces_with_the_reference_cor(dt):
     the contact (4.8 ms) spread over 5 steps or inside one: the record's COR
     and tau are the reference solver's with the tip's effective mass, within
     PENDULUM_RTOL, no contact found deep at its onset, and the arm leaves
-    at the record's COR. (RK4 on links stays warned: on driven links, the
-    ant, see docs/engines.md "RK4 on links".)"""
+    at the record's COR, with nothing warned."""
     import math
     import warnings
 
@@ -291,10 +406,9 @@ def test_a_link_under_rk4_bounces_with_the_reference_cor(dt):
     mujoco.mj_fullM(model, data, M)
     law = make_law("msf", ContactPair(rubber, steel), Curvature.sphere_on_plane(r))
     ref = simulate_impact(law, Body(rubber, r, float(M[0, 0]) / l**2), Body.half_space(steel), v)
-    with pytest.warns(RuntimeWarning, match="under RK4 on links"):
-        adapter = MujocoAdapter(model, data, [PairSpec("tip", "floor", law)])
     with warnings.catch_warnings():
-        warnings.simplefilter("error")  # nothing else: no deep onset, no energy gain, no small-strain note
+        warnings.simplefilter("error")  # nothing: no RK4 warning, no deep onset, no energy gain, no small-strain note
+        adapter = MujocoAdapter(model, data, [PairSpec("tip", "floor", law)])
         rec = run_until_separated(adapter, 1000)
     assert abs(rec.cor_n / ref.cor_n - 1) < PENDULUM_RTOL and abs(rec.tau / ref.tau - 1) < PENDULUM_RTOL
     assert adapter.deep_onsets == 0 and not rec.outside_validity
@@ -315,7 +429,7 @@ def test_the_ant_under_rk4_sees_its_drives_in_the_step_they_act():
     """ant.xml at its own RK4, 10 ms, 150 steps of the seeded torques (a new
     torque every step): the actuators' change since their last evaluation
     enters each link pair's a_ext in the step it acts
-    (MujocoAdapter._actuation_change), so no contact is found deep at its
+    (engines.mujoco._known), so no contact is found deep at its
     onset and the ant does not hop (ANT_RK4_Z_MAX). The 26 mm deep ankle
     (COR 3.9) of the RK4 ant began at step 105 of this sequence."""
     import warnings
@@ -324,7 +438,7 @@ def test_the_ant_under_rk4_sees_its_drives_in_the_step_they_act():
     model, data, pairs = load_with_msf_floor(path, ContactPair(preset("natural-rubber"), preset("steel")))
     assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore", RuntimeWarning)  # RK4 on links stays warned (docs/engines.md)
+        warnings.simplefilter("error", RuntimeWarning)  # RK4 on links is no longer warned
         adapter = MujocoAdapter(model, data, pairs)
     rng = np.random.default_rng(SEED)
     lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]

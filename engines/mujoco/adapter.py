@@ -75,10 +75,13 @@ force over the next step, so it stays in the other pairs' a_ext (without it
 a resting stack of rubber balls rests 80% too deep at dt = 1 ms). For the
 first step a_ext is gravity acting on the bodies that are not welded to the
 world. The pairs read through Jacobians (links of chains, box faces) add
-J M^-1 (change of the actuator forces since their last evaluation) in the
-step the drive acts (``MujocoAdapter._actuation_change``): a policy's new
-torque each step is not seen a step late (the MSF ant under RK4 hopped to
-6 m on that lag). Constraint forces (joint limits) stay one step late.
+J M^-1 (change of the actuator, user and constraint forces since the last
+step) in the step they act, and their W, couplings and impulses use the
+inverse inertia with the joint limits active at the step start responding
+(:mod:`engines.mujoco._known`, under every integrator, RK4's four stages
+weighted as RK4 weighs them): a policy's new torque each step is not seen a
+step late (the MSF ant under RK4 hopped to 6 m on that lag), nor a limit
+that engages or a user's qfrc_applied / xfrc_applied.
 
 The per-step work of the free group (pairs of a free sphere and a plane, a
 fixed body or another free sphere: detection, v_rel, W, the a_ext
@@ -120,6 +123,7 @@ from engines.base import (
     check_law_curvature,
 )
 from engines.mujoco import _held, _resting
+from engines.mujoco._known import KnownForces
 from engines.mujoco._stepping import StepTracker
 from msf_contact._validate import ValidityWarning
 
@@ -545,6 +549,9 @@ class MujocoAdapter(EngineAdapter):
             if q.kind2 == "narrow" and q.fixed2 and not q.fixed1 and _simple_free_body(model, q.body1):
                 self.manager.own_gap[q.index] = True
         self._slow = [p for p in self._pairs if not self._is_fast[p.index]]
+        #: the actuator, user and constraint forces' change between steps, seen by the pairs read through
+        #: Jacobians in the step it acts (engines.mujoco._known); None without such pairs
+        self._known = KnownForces(model, data) if self._slow else None
         self._apply_fast: tuple | None = None
         self._apply_couple: tuple | None = None  # (bodies (b,), dofs (b,), world torques (b, 3)) of the step
         self._x_last = np.zeros(P)  # max(x, 0) of each pair in the last step (0: not a candidate) [m]
@@ -635,8 +642,6 @@ class MujocoAdapter(EngineAdapter):
         self._all_msf = True  # every pair on MSF (set_mode)
         self._rest_kin = None  # the kinematics the last resting step made (engines.mujoco._resting.step)
         self._any_link = bool(self._link_pairs.any())  # _check_deep_onsets has nothing to look at without one
-        self._rk4_checked = None
-        self._warn_rk4_links()
         # the adapter's own conditions for the resting step in one call (engines.mujoco._resting.eligible)
         self._fused_static = bool(self.compiled and not self._slow and self._fast.index.size and not self._shared
                                   and not self._any_link)
@@ -830,7 +835,11 @@ class MujocoAdapter(EngineAdapter):
         """The hook: classify the call (engines.mujoco._stepping), compute the
         step's force once per step, apply it in every call of the step."""
         kind = self._tracker.classify(data)
-        if kind not in ("same", "stage"):
+        known = self._known
+        if known is not None:
+            known.read(kind, self._tracker.stage)
+        computed = kind not in ("same", "stage")
+        if computed:
             if float(model.opt.timestep) != self.manager.dt:
                 raise RuntimeError(f"model.opt.timestep = {float(model.opt.timestep)!r} s changed after the adapter "
                                    f"was made for dt = {self.manager.dt!r} s: make a new adapter")
@@ -845,6 +854,7 @@ class MujocoAdapter(EngineAdapter):
         # the lever arm from each body's centre of mass is held fixed in world axes
         # over the step (the contact point stays under the ball; the manager's W
         # assumes it), so every RK4 stage gets the same force and moment
+        before = data.qfrc_passive.copy() if computed and known is not None else None
         if self._apply_fast is not None:
             if self.compiled:
                 self._kernels.apply(data.qfrc_passive, data.xipos, data.xanchor, data.xmat, *self._apply_fast)
@@ -856,6 +866,8 @@ class MujocoAdapter(EngineAdapter):
             mujoco.mj_applyFT(model, data, F, _ZERO3, data.xipos[b1] + r1, b1, data.qfrc_passive)
             if not fixed2:
                 mujoco.mj_applyFT(model, data, -F, _ZERO3, data.xipos[b2] + r2, b2, data.qfrc_passive)
+        if before is not None:
+            known.applied(before)
 
     # -- the run-time switch per pair -----------------------------------------------
     def set_mode(self, which, mode: str) -> None:
@@ -1082,35 +1094,6 @@ class MujocoAdapter(EngineAdapter):
         self._narrow_key, self._narrow_found = key, out
         return out
 
-    def _warn_rk4_links(self) -> None:
-        """Warn once (RuntimeWarning) when the model runs RK4 with MSF pairs on
-        links of a chain: the contact's step-averaged force is held through
-        RK4's four stages (the stages' other forces follow their states, the
-        contact's does not), and the forces MuJoCo's constraint solver gives
-        inside the step (joint limits) reach the contacts' free flight one
-        step late, as under Euler. The drives no longer do
-        (:meth:`_actuation_change`): their lag made the MSF ant (pybullet_data
-        ant.xml, RK4 at its own 10 ms, seeded torques; scripts/ant_integrators.py)
-        hop to 6.0 m with an ankle found 26 mm inside the floor (COR 3.9); with
-        them and the links' own gaps it stays below 1.31 m, and over 1,000
-        steps of torques then 1,000 at rest 6 contacts are found deep at their
-        onset (0.3-3 um; Euler 6). Free bodies under RK4 are as under Euler
-        (tests/test_mujoco_hook.py). Checked again when the integrator changes."""
-        integ = int(self.model.opt.integrator)
-        if integ == self._rk4_checked:
-            return
-        self._rk4_checked = integ
-        if integ != int(mujoco.mjtIntegrator.mjINT_RK4) or not np.any(self._link_pairs):
-            return
-        names = [f"{i} {self.pair_names[i]}" for i in np.flatnonzero(self._link_pairs)[:4]]
-        more = int(np.count_nonzero(self._link_pairs)) - len(names)
-        warnings.warn(f"MSF under RK4 on links of a chain (pairs {', '.join(names)}{f' and {more} more' if more > 0 else ''}): "
-                      "the contacts' step-averaged force is held through RK4's four stages, and joint-limit and "
-                      "other constraint forces acting inside a step reach the contacts' free flight one step late "
-                      "(as under Euler and implicitfast), so a link they move is met where the contact did not "
-                      "integrate it (found deep at its onset: flagged); take a smaller timestep",
-                      RuntimeWarning, stacklevel=3)
-
     def _check_deep_onsets(self, t0: float) -> None:
         """Never silent: a contact on a link of a chain (not a single free
         body), solved in an island, that began in this step already
@@ -1122,7 +1105,7 @@ class MujocoAdapter(EngineAdapter):
         work its probe does not see), the single contact's COR check too.
         Measured: the MSF ant under RK4 at 10 ms (scripts/ant_integrators.py)
         had an ankle found 26 mm inside the floor at 7 m/s, COR 3.9, before
-        its drives entered a_ext in their own step (:meth:`_actuation_change`)."""
+        its drives entered a_ext in their own step (engines.mujoco._known)."""
         if not self._any_link:
             return
         mgr = self.manager
@@ -1143,12 +1126,14 @@ class MujocoAdapter(EngineAdapter):
             self._deep_flagged_at[p] = float(mgr.t_onset[p])
             integ = int(self.model.opt.integrator)
             why = ("MuJoCo's RK4 moved the link into overlap within a step the contact's free flight did not "
-                   "predict (a joint limit's or another constraint's force acting inside the step, seen a step "
-                   "late; a fast-turning link); take a smaller timestep"
+                   "predict (the other forces' change inside the step, which RK4's stages follow and the free "
+                   "flight holds at the step start: a joint limit engaging, a fast-turning link; a control "
+                   "written by mjcb_control); take a smaller timestep"
                    if integ == int(mujoco.mjtIntegrator.mjINT_RK4) else
                    "the engine moved the bodies into overlap within a step the contact's free flight did not "
                    "predict (semi-implicit Euler moves a body by dt v_end, dt^2/2 a further than the free flight; "
-                   "a joint limit's force acting inside the step; a fast-turning link); take a smaller timestep")
+                   "the other forces' change inside the step: a joint limit engaging, a fast-turning link; a "
+                   "control written by mjcb_control); take a smaller timestep")
             note = (f"contact found {x:.3g} m deep at its onset (dt = {mgr.dt:g} s): its elastic energy there, "
                     f"{stored:.3g} J, was never worked for ({stored / approach:.3g} of its approach energy "
                     f"{approach:.3g} J): {why}")
@@ -1390,7 +1375,6 @@ class MujocoAdapter(EngineAdapter):
         kin.lever = self._lever(kin)
         out: ContactForces = mgr.step(self._mask(kin))
         self._check_deep_onsets(float(d.time))
-        self._warn_rk4_links()
         self._last_kin, self._last_out = kin, out
         Qc = self._couples(out)
         if self._shared:
@@ -1444,7 +1428,7 @@ class MujocoAdapter(EngineAdapter):
         Qdt = Q * dt
         if np.any(Qdt):  # _cross_dv
             dq = np.zeros((1, m.nv))
-            mujoco.mj_solveM(m, d, dq, Qdt.reshape(1, -1))
+            self._solve_m(dq, Qdt.reshape(1, -1))
             dq = dq[0]
             if fast:
                 K.velocity_change(self._gi, dq, d.xmat, d.xanchor, p1, p2, self._last_dv)
@@ -1555,35 +1539,13 @@ class MujocoAdapter(EngineAdapter):
         take the torque in body axes, xmat^T tq (as _FreeGroup.apply)."""
         np.add.at(q, dof[:, None] + np.arange(3, 6), np.einsum("kji,kj->ki", d.xmat[b].reshape(-1, 3, 3), tq))
 
-    def _actuation_change(self) -> np.ndarray | None:
-        """The change of the generalised acceleration M^-1 (Q_a(now) - Q_a(last)) [(nv,)]
-        by the actuators since their force was last computed, None if none changed.
-
-        The finite-difference a_ext of a pair is the last step's relative
-        acceleration: it holds the actuator forces of the last step's controls.
-        A drive whose control changes between steps (a policy's or a seeded
-        torque sequence: a new torque every step) then acts one step before
-        its pair's free flight sees it, and a leg driven into the floor inside
-        a step is found there deep, with elastic energy no force worked for
-        (the MSF ant at 10 ms: 15 such onsets in 300 steps under Euler, a hop
-        to 2-6 m under RK4). The hook runs inside mj_passive, before MuJoCo's
-        own mj_fwdActuation: this step's actuator forces come from the same
-        call made here (MuJoCo recomputes them unchanged after the hook; the
-        controls, activations, transmission lengths, moments and velocities
-        are current). Q_a(last) is what the last forward pass left in
-        qfrc_actuator (RK4: its fourth stage). Joint-limit and other
-        constraint forces, solved after the hook, stay one step late."""
-        m, d = self.model, self.data
-        if m.nu == 0:
-            return None
-        last = d.qfrc_actuator.copy()
-        mujoco.mj_fwdActuation(m, d)
-        dQ = d.qfrc_actuator - last
-        if not np.any(dQ):
-            return None
-        out = np.zeros((1, m.nv))
-        mujoco.mj_solveM(m, d, out, dQ.reshape(1, -1))
-        return out[0]
+    def _solve_m(self, out: np.ndarray, rows: np.ndarray) -> None:
+        """out = M^-1 applied to each row of rows (k, nv), with the constraint rows active at the step start
+        responding (engines.mujoco._known: M_eff^-1) when there are pairs read through Jacobians."""
+        if self._known is not None:
+            self._known.solve(out, rows)
+        else:
+            mujoco.mj_solveM(self.model, self.data, out, rows)
 
     def _slow_rows(self, required) -> tuple[dict | None, dict, list]:
         """The candidate rows of the pairs read through Jacobians (a dict of
@@ -1595,7 +1557,7 @@ class MujocoAdapter(EngineAdapter):
         rows = []
         points = {}
         jacs = []
-        dq_act = self._actuation_change()
+        dq_known = self._known.change() if self._known is not None else None
         for p in self._slow:
             det = self._geometry(p)
             x, n, point = float(det.x[0]), det.normal[0], det.point[0]
@@ -1610,15 +1572,15 @@ class MujocoAdapter(EngineAdapter):
                 a_ext = (v_rel - self._last_v[i] - self._last_dv[i]) / dt
             else:
                 a_ext = self._first_step_a_ext(p)
-            if dq_act is not None and self._have_last[i]:  # this step's drive, not the last one's
-                a_ext = a_ext + J @ dq_act
+            if dq_known is not None and self._have_last[i]:  # this step's drives, user and constraint forces
+                a_ext = a_ext + J @ dq_known
             self._last_v[i], self._last_dv[i], self._have_last[i] = v_rel, 0.0, True
             reach = float(closing_distance(-float(v_rel @ n), -float(a_ext @ n), dt, CANDIDATE_FACTOR))
             if x <= -(reach + self._push[i]) and not required[i]:
                 continue
             # W = J M^-1 J^T, W_com = J_c M^-1 J^T
             MinvJT = np.zeros((3, m.nv))
-            mujoco.mj_solveM(m, d, MinvJT, np.ascontiguousarray(J))
+            self._solve_m(MinvJT, np.ascontiguousarray(J))
             W = J @ MinvJT.T
             Jc = self._jacobian(p.body1, d.xipos[p.body1], self._jac).copy()
             Jc -= self._jacobian(p.body2, d.xipos[p.body2], self._jac2)
@@ -1730,7 +1692,7 @@ class MujocoAdapter(EngineAdapter):
             J[i], Jc[i] = Ji, Jci
         for i in np.unique(pq).tolist():
             out = np.zeros((3, m.nv))
-            mujoco.mj_solveM(m, d, out, np.ascontiguousarray(J[i]))
+            self._solve_m(out, np.ascontiguousarray(J[i]))
             MJ[i] = out
         W = np.array([J[a] @ MJ[b].T for a, b in zip(pp.tolist(), pq.tolist())]).reshape(-1, 3, 3)
         Wc = np.array([Jc[a] @ MJ[b].T for a, b in zip(pp.tolist(), pq.tolist())]).reshape(-1, 3, 3)
@@ -1773,7 +1735,7 @@ class MujocoAdapter(EngineAdapter):
         if not np.any(Qdt):
             return
         dq = np.zeros((1, m.nv))
-        mujoco.mj_solveM(m, d, dq, Qdt.reshape(1, -1))
+        self._solve_m(dq, Qdt.reshape(1, -1))
         dq = dq[0]
         if blk is not None:
             # only the pairs whose bodies moved (a free body's block of M^-1 is its own)

@@ -211,22 +211,34 @@ class RestEnergy:
     implicitfast ``mj_step`` applies the force solved at the step's start
     (``efc_force``: :func:`limit_force`) through v' = v + h M^-1 (... + J^T f),
     which changes the kinetic energy by h (J^T f) . (v + v') / 2 (M fixed over
-    the step), the work added to ``absorbed`` with its sign reversed. RK4
-    solves the limits at four stages that ``data`` does not keep: refused.
+    the step), the work added to ``absorbed`` with its sign reversed. RK4 solves the
+    constraints at four stages, v' = v + h sum_j B_j M^-1 (... + Q_j), and
+    ``data`` keeps only the last; the MSF adapter's hook, called at every
+    stage, reads each stage's constraint force Q_j (``qfrc_constraint``,
+    still in ``data`` at the next stage's hook: engines.mujoco._known), and
+    their share of the step's kinetic-energy change is
+    h (sum_j B_j Q_j) . (v + v') / 2 (M fixed over the step, as above; Euler's
+    formula is the one-stage case). A stage whose rows are of several kinds
+    cannot be split by kind: it is booked whole under "mixed" and the step
+    listed in ``mixed``. RK4 needs that adapter (a MujocoAdapter with a pair
+    read through Jacobians: a link, a box; without one use Euler, implicit or
+    implicitfast), and ``update()`` right after each ``mj_step``.
 
     Use: ``acc = RestEnergy(model, data, adapter)`` before a step, then
     ``acc.update()`` after every ``mj_step`` (adapter None: no MSF)."""
 
     def __init__(self, model: mujoco.MjModel, data: mujoco.MjData, adapter=None):
-        if model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
-            raise ValueError("integrator = RK4: its limit forces of four stages are not in data after mj_step, so "
-                             "the limits' work cannot be read; use Euler, implicit or implicitfast "
+        if model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4 and getattr(adapter, "_known", None) is None:
+            raise ValueError("integrator = RK4: its limit forces of four stages are not in data after mj_step; "
+                             "they are read by a MujocoAdapter with a pair on a link or a box (its hook sees each "
+                             f"stage), got adapter = {adapter!r}; without one use Euler, implicit or implicitfast "
                              "(model.opt.integrator)")
         self.model, self.data, self.adapter = model, data, adapter
         #: energy MuJoCo's constraints took out of the mechanism since the start, per kind of
-        #: CONSTRAINT_KINDS [J]
+        #: CONSTRAINT_KINDS [J] (under RK4 also "mixed": stages whose rows were of several kinds)
         self.absorbed_by = {k: 0.0 for k in CONSTRAINT_KINDS}
         self.absorbed = 0.0  #: their sum [J]
+        self.mixed: list[int] = []  #: RK4 steps with a stage whose rows were of several kinds (booked whole)
         self.gains: list[tuple[int, float, float]] = []  #: (step, rise [J], allowed [J]) of unexplained rises
         self.steps = 0
         self._v = self._qvel()
@@ -246,8 +258,10 @@ class RestEnergy:
         """After an ``mj_step``: the account now [J]; a rise beyond the bound is listed and warned."""
         v = self._qvel()
         vm = 0.5 * (self._v + v)
-        for k, f in constraint_forces(self.model, self.data).items():
-            self.absorbed_by[k] -= self.model.opt.timestep * float(f @ vm)
+        forces = (self._rk4_constraint_forces() if self.model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
+                  else constraint_forces(self.model, self.data))
+        for k, f in forces.items():
+            self.absorbed_by[k] = self.absorbed_by.get(k, 0.0) - self.model.opt.timestep * float(f @ vm)
         self.absorbed = float(sum(self.absorbed_by.values()))
         T0, P0, before = self.kinetic, self._power, self.total
         self.total = self._account(v)
@@ -264,6 +278,28 @@ class RestEnergy:
                               "constraints took (engines.mujoco.robots.RestEnergy) is not explained by the account; warned "
                               "once, every such step is listed in RestEnergy.gains", RuntimeWarning, stacklevel=2)
         return self.total
+
+    def _rk4_constraint_forces(self) -> dict[str, np.ndarray]:
+        """sum_j B_j Q_j over the RK4 step just taken (class docstring), per kind of
+        CONSTRAINT_KINDS [N or N m] {kind: (nv,)}: a stage's whole constraint force
+        goes to the kind of its rows; a stage with rows of several kinds to "mixed"."""
+        from engines.mujoco._stepping import RK4_B
+
+        tracker = self.adapter._tracker
+        if tracker.stage != 3 or float(self.data.time) != tracker.t0 + float(self.model.opt.timestep):
+            raise RuntimeError("RestEnergy.update() under RK4 must follow each mj_step directly (the adapter "
+                               "holds the constraint forces of the last step's stages only until the next call)")
+        Qc, types = self.adapter._known.rk4_step()
+        out = {k: np.zeros(self.model.nv) for k in CONSTRAINT_KINDS}
+        for j, b in enumerate(RK4_B):
+            kinds = [k for k, ts in CONSTRAINT_KINDS.items() if types[j] & {int(t) for t in ts}]
+            if not kinds:  # no constraint row in that stage: no force
+                continue
+            if len(kinds) > 1 and (not self.mixed or self.mixed[-1] != self.steps + 1):
+                self.mixed.append(self.steps + 1)
+            key = kinds[0] if len(kinds) == 1 else "mixed"
+            out[key] = out.get(key, np.zeros(self.model.nv)) + b * Qc[j]
+        return out
 
 
 __all__ = ["CONSTRAINT_KINDS", "FLOOR", "REST_GAIN_RTOL", "RestEnergy", "constraint_forces", "limit_force",
