@@ -15,7 +15,12 @@ After WARMUP steps (0.5 s: every sphere has bounced and come to rest, so
 the timed steps are N resting contacts, which MSF handles on the manager's
 settled path) each variant runs STEPS steps per repeat, the variants
 interleaved (msf, builtin, nocontact, msf, ...) so machine noise hits them
-alike; the per-step figure is the median over repeats of the process's CPU
+alike, each repeat after REWARM untimed steps of its own; in MuJoCo the
+built-in and no-contact variants are timed without the MSF variant's
+mjcb_passive (MuJoCo's callbacks are global to the process: installed, it
+would add a Python call per mj_step to theirs). Each variant runs the same
+number of mj_step of the same scene at the same dt. The per-step figure is
+the median over repeats of the process's CPU
 time (``time.process_time``: on a shared machine other jobs' load changes
 it less than wall time). The record also
 gives how many MSF contacts took the settled path in the last step.
@@ -33,6 +38,10 @@ DT = 1e-3
 GRAVITY = 9.81
 #: Warm-up steps before timing: 0.5 s at DT, after which the spheres rest (module docstring).
 WARMUP = 500
+#: Untimed steps of a variant before each of its timed repeats, so that the repeat starts with its
+#: own data in the caches and not the variant timed before it (measured at N = 1,000 in MuJoCo: the
+#: variant timed right after MSF ran 10-20 us per step slower over 100 steps, ~2 % of the built-in).
+REWARM = 5
 SIZES = (1, 100, 1000, 10000)
 QUICK_SIZES = (1, 100)
 
@@ -137,6 +146,23 @@ def _close(engine, handle):
             pb.disconnect(handle.client)
 
 
+def _without_hook(step):
+    """``step`` run with no mjcb_passive installed (the MSF variant's hook, restored after: a
+    Python call per mj_step, 3-5 us measured with a no-op callable at N = 1,000), so the
+    built-in and no-contact figures are MuJoCo's alone."""
+    import mujoco
+
+    hook = mujoco.get_mjcb_passive()
+
+    def run(k):
+        mujoco.set_mjcb_passive(None)
+        try:
+            step(k)
+        finally:
+            mujoco.set_mjcb_passive(hook)
+    return run
+
+
 def measure(engine: str, n: int, repeats: int) -> dict:
     build = mujoco_variant if engine == "mujoco" else pybullet_variant
     steps = _steps(n, engine)
@@ -149,9 +175,12 @@ def measure(engine: str, n: int, repeats: int) -> dict:
             handles.append(h)
             step(WARMUP)
             variants[mode] = (step, info)
+        if engine == "mujoco":  # MuJoCo's callback is global: the others run without the MSF variant's
+            variants = {m: (v if m == "msf" else (_without_hook(v[0]), v[1])) for m, v in variants.items()}
         times = {m: [] for m in variants}
         for _ in range(repeats):
             for m, (step, _) in variants.items():  # interleaved: noise hits every variant alike
+                step(REWARM)
                 times[m].append(median_time(lambda: step(steps), 1, time.process_time)[0] / steps)
         infos = {m: info() for m, (_, info) in variants.items()}
     finally:
@@ -164,7 +193,7 @@ def measure(engine: str, n: int, repeats: int) -> dict:
         "ratio_msf_over_builtin": med["msf"] / med["builtin"],
         "ratio_msf_over_nocontact": med["msf"] / med["nocontact"],
         "median": "per-step median over repeats (CPU time of the process)", "repeats": repeats, "steps_per_repeat": steps,
-        "warmup_steps": WARMUP,
+        "warmup_steps": WARMUP, "rewarm_steps": REWARM,
         "msf_contacts_at_end": infos["msf"]["contacts"], "msf_settled_at_end": infos["msf"]["settled"],
         "builtin_contacts_at_end": infos["builtin"]["contacts"],
         "all_s": {m: t for m, t in times.items()},
