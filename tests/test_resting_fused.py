@@ -5,7 +5,9 @@ same engine state, forces, contact state and records bit for bit, since the
 one call runs the same compiled passes in the same order. Checked where
 the resting step is taken most steps and where it has to hand back to the
 general path (a sphere lifted off its contact, one pushed to slide, a
-sphere resting on a fixed sphere: the held sphere-sphere geometry)."""
+sphere resting on a fixed sphere: the held sphere-sphere geometry), under
+semi-implicit Euler and RK4 (whose later stages apply the resting step's
+forces as the general path's)."""
 
 from __future__ import annotations
 
@@ -30,7 +32,7 @@ STATE = ("active", "settled", "x", "xdot", "s", "vc", "J", "dv_corr", "dvc_corr"
          "W_el", "W_visc", "Q_t", "W_t", "phase", "turned", "outside", "_listed", "_point", "couple")
 
 
-def _scene(n: int, on_sphere: bool):
+def _scene(n: int, on_sphere: bool, integrator: str = "Euler"):
     """n rubber spheres (R = 20 mm) over a steel plate, seeded gaps of 0-0.5 mm (as
     benchmarks/spheres.py); with on_sphere, one more rubber sphere balanced on a fixed
     steel sphere. Returns (model, data, pairs)."""
@@ -50,16 +52,16 @@ def _scene(n: int, on_sphere: bool):
         xml.append(body.format(i=n, x=-0.2, y=0.0, z=2 * Rs + R + 1e-4, m=float(ball.mass), J=float(ball.J), R=R))
         pairs.append(PairSpec(f"g{n}", "anvil", make_law("msf", ContactPair(RUBBER, STEEL), Curvature(R, R, Rs, Rs))))
     model = mujoco.MjModel.from_xml_string(
-        f'<mujoco><option timestep="{DT!r}" integrator="Euler" gravity="0 0 -9.81"/><worldbody>'
+        f'<mujoco><option timestep="{DT!r}" integrator="{integrator}" gravity="0 0 -9.81"/><worldbody>'
         f'<geom name="plate" type="plane" size="0 0 1" contype="0" conaffinity="0"/>{"".join(xml)}'
         "</worldbody></mujoco>")
     return model, mujoco.MjData(model), pairs
 
 
-def _run(fused: bool, n: int, steps: int, on_sphere: bool, pushes: dict):
+def _run(fused: bool, n: int, steps: int, on_sphere: bool, pushes: dict, integrator: str):
     """Step the scene; pushes {step: (body, xfrc (6,))} set data.xfrc_applied from that step
     on. Returns the adapter and the engine state (qpos, qvel, qfrc_passive) of every step."""
-    model, data, pairs = _scene(n, on_sphere)
+    model, data, pairs = _scene(n, on_sphere, integrator)
     data.qpos[7 * 3 + 2] += 3e-3  # sphere 3 lands later, spinning: the moving contact point until it settles
     data.qvel[6 * 3 + 3] = 5.0
     ad = MujocoAdapter(model, data, pairs)
@@ -74,8 +76,8 @@ def _run(fused: bool, n: int, steps: int, on_sphere: bool, pushes: dict):
     return ad, trace
 
 
-@pytest.mark.parametrize("on_sphere", [False, True])
-def test_resting_step_in_one_call_is_the_general_path_bit_for_bit(monkeypatch, on_sphere):
+@pytest.mark.parametrize("on_sphere, integrator", [(False, "Euler"), (True, "Euler"), (False, "RK4")])
+def test_resting_step_in_one_call_is_the_general_path_bit_for_bit(monkeypatch, on_sphere, integrator):
     taken = {True: 0, False: 0}
     real = resting.step
 
@@ -89,9 +91,9 @@ def test_resting_step_in_one_call_is_the_general_path_bit_for_bit(monkeypatch, o
     # from step 500: body 1 (sphere 0) lifted off the plate for 30 steps, body 2 pushed sideways
     pushes = {500: [(1, [0, 0, 20.0, 0, 0, 0]), (2, [2.0, 0, 0, 0, 0, 0])],
               530: [(1, [0.0] * 6), (2, [0.0] * 6)]}
-    general, want = _run(False, n, steps, on_sphere, pushes)
+    general, want = _run(False, n, steps, on_sphere, pushes, integrator)
     assert taken == {True: 0, False: 0}, "the general path took the resting step"
-    fused, got = _run(True, n, steps, on_sphere, pushes)
+    fused, got = _run(True, n, steps, on_sphere, pushes, integrator)
     assert taken[True] > steps // 3, f"the resting step was taken in {taken[True]} of {steps} steps"
     assert taken[False] > 0, "no step went back to the general path: the hand-back is not tested"
     for s, (g, w) in enumerate(zip(got, want)):

@@ -107,7 +107,7 @@ def step(ad, factor: float) -> tuple[bool, bool, int]:
     if code != RESTING:
         return False, False, n
     # what the general path leaves on the adapter and the manager (_compute_rest, ContactManager.step);
-    # no link pairs (eligible): _check_deep_onsets and _warn_rk4_links have nothing to do. The
+    # no link pairs (eligible): _check_deep_onsets has nothing to do. The
     # kinematics of the last resting step are views of the same buffers: kept when n is the same
     kin = ad._rest_kin
     if kin is None or kin is not getattr(ad, "_last_kin", None) or kin.pair.shape[0] != n:

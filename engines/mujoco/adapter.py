@@ -848,7 +848,8 @@ class MujocoAdapter(EngineAdapter):
             self._in_hook = True
             try:
                 if self._compute():
-                    return  # the resting step applied its forces itself (engines.mujoco._resting)
+                    return  # the resting step applied its forces itself (engines.mujoco._resting: no pair
+                    # read through Jacobians, so no known forces to tell)
             finally:
                 self._in_hook = False
         # the lever arm from each body's centre of mass is held fixed in world axes
