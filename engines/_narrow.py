@@ -620,8 +620,9 @@ class SideLine:
         #: the two ends' SideEndLaw; None: not built yet; False: the pair's law cannot carry a line
         self.law = None
         self.ends: SideEnds | None = None
+        self._hold = np.zeros(2, bool)  # the ends whose pose stays (update's moving)
 
-    def update(self, pos, rot, plane_pos, plane_normal, busy, template) -> bool:
+    def update(self, pos, rot, plane_pos, plane_normal, busy, template, moving=None) -> bool:
         """The side's ends at the shape's pose (``pos`` [m] (3,), ``rot`` (3, 3))
         against the plane (``plane_pos`` [m] (3,), unit ``plane_normal`` (3,))
         and the mode: a contact in progress (any of the pair's slots ``busy``
@@ -630,8 +631,12 @@ class SideLine:
         LINE_TILT_MAX. The ends' laws are built from the pair's law
         ``template`` on the first line; one that cannot carry a line (not msf
         with kp_mode 'msf') leaves the pair on the points, warned once.
-        Returns True when the mode changed (the slots start afresh)."""
+        ``moving`` (n,) bool: the slots in contact and not settled (the
+        manager's active and not settled): their ends keep their pose
+        (:meth:`slots`); None: none. Returns True when the mode changed (the
+        slots start afresh)."""
         self.ends = ends = side_ends(self.shape, pos, rot, plane_pos, plane_normal)
+        self._hold = np.zeros(2, bool) if moving is None else np.asarray(moving, dtype=bool)[:2].copy()
         changed = False
         if not np.any(busy) and self.law is not False:
             mode = "line" if ends.tilt < LINE_TILT_MAX else "point"
@@ -655,16 +660,33 @@ class SideLine:
     def slots(self, nWn, n_slots: int, refresh) -> list:
         """Slots 0 and 1 as the side's two ends, (x [m], point [m] (3,) midway
         between the surfaces, normal (3,)) each, the other slots None; each
-        end's law takes the current pose (:meth:`SideEndLaw.set_pose`, every
-        step: a pose frozen at each contact's onset left a resting cylinder of
-        the objects scenario in MuJoCo with a 3.4 mJ gain against 0.36 mJ) and
-        its onset mass from ``nWn`` (2, 2) [1/kg], n.W.n between the ends'
-        lowest points (W the relative motion's inverse inertia along the
-        plane's normal); ``refresh(law)`` is called after each change (the
-        manager's ContactManager.refresh_law: the compiled constants follow)."""
+        end's law takes the current pose (:meth:`SideEndLaw.set_pose`) and its
+        onset mass from ``nWn`` (2, 2) [1/kg], n.W.n between the ends' lowest
+        points (W the relative motion's inverse inertia along the plane's
+        normal), except an end in a contact that has not settled (``moving``
+        of :meth:`update`), which keeps its pose until the contact settles or
+        ends. Why: an end's share W_end depends on the tilt, and the tilt on
+        both ends' approaches (a capsule: sin tilt = (x0 - x1)/L), so with the
+        pose following the body the ends' forces are no gradient of an
+        energy of (x0, x1) (dF_0/dx_1 != dF_1/dx_0): a capsule dropped tilted
+        0.8-1 deg turned flatter while its lower end was in contact, and that
+        end pushed out harder than it was pushed in (an island step +2.24 mJ
+        at 1 deg, MuJoCo and pybullet alike; docs/engines.md). Within a
+        contact each end's law is then a function of its own approach alone.
+        A settled contact follows the pose (a body at rest hardly turns;
+        frozen there too, a capsule come to rest from 2 deg kept an end's
+        share of 0.025 deg and rested 6.3 um deep at that end, 1.9 um at the
+        other; a pose frozen at every onset had left the objects scenario's
+        resting cylinder with a 3.4 mJ gain). ``refresh(law)`` is called
+        after each change (the manager's ContactManager.refresh_law: the
+        compiled constants follow)."""
         ends = self.ends
         per = [None] * n_slots
         for i in range(2):
+            if self._hold[i]:  # in a contact that has not settled: its pose stays
+                x = float(ends.x[i])
+                per[i] = (x, ends.lowest[i] + 0.5 * x * ends.normal, ends.normal.copy())
+                continue
             self.law[i].set_pose(ends.tilt, float(ends.rise[i]), float(nWn[i, i]), float(nWn[i, 1 - i]),
                                  float(ends.x[1 - i] - ends.x[i]))
             refresh(self.law[i])

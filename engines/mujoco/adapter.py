@@ -1153,8 +1153,10 @@ class MujocoAdapter(EngineAdapter):
         g1, g2, s1, _, match = self._narrow_pairs[k]
         rot2 = d.geom_xmat[g2].reshape(3, 3)
         first = next(q.index for q in self._pairs if q.narrow == k)
+        mgr = self.manager
+        moving = mgr.active[first:first + match.n] & ~mgr.settled[first:first + match.n]
         if st.update(d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3), d.geom_xpos[g2], rot2[:, 2], busy,
-                     self.pairs[first].law):
+                     self.pairs[first].law, moving):
             match.anchor[:] = np.nan  # the slots start afresh in the other mode
         return st.mode
 

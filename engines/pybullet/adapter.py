@@ -1039,7 +1039,9 @@ class PybulletAdapter(EngineAdapter):
         c1, R1 = self._world_shape(np_.shape1, poses[0])
         c2, R2 = self._world_shape(np_.shape2, poses[1])
         normal = R2 @ (np.asarray(np_.shape2.size, float) / np.linalg.norm(np_.shape2.size))
-        if np_.line.update(c1, R1, c2, normal, required[i0:i0 + n], self.pairs[i0].law):
+        mgr = self.manager
+        moving = mgr.active[i0:i0 + n] & ~mgr.settled[i0:i0 + n]
+        if np_.line.update(c1, R1, c2, normal, required[i0:i0 + n], self.pairs[i0].law, moving):
             np_.matcher.anchor[:] = np.nan
             self._have_last[i0:i0 + n] = False
         if np_.line.mode != "line":
