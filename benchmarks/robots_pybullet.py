@@ -6,13 +6,17 @@ pybullet's own contact, under the same seeded random torques (uniform in
 each motor's MJCF torque range, gear x ctrlrange, seed 13) for STEPS steps,
 then STEPS steps with the torques off. Per record: the wall time per step
 of each variant and their ratio, the base height at the end of the
-torques, the MSF impact records, and the energy over the rest phase
-(kinetic + gravitational, :func:`engines.pybullet.robots.mechanical_energy`,
-plus with MSF the energy held in the contacts,
-``ContactManager.stored_energy``; pybullet's own contact's penetration
-energy is outside its sum): its largest rise above the rest phase's start
-after the first fifth. The MuJoCo variant is :mod:`benchmarks.robots`; ``make bench``
-runs both.
+torques, the MSF impact records, and the energy over the rest phase: with
+MSF the account of :class:`engines.pybullet.robots.RestEnergy` (kinetic +
+gravitational, :func:`engines.pybullet.robots.mechanical_energy`, plus the
+energy held in the contacts, ``ContactManager.stored_energy``), its largest
+rise above its start and above its running minimum over the whole rest, how much of the rest's
+change pybullet's steps added beyond the MSF loads' work (``engine_added``:
+its joint limits' impulses, its integration of turning links) and the
+largest rise of the contacts' own balance (account less engine_added), and
+the steps above RestEnergy's bounds; with pybullet's own contact the
+mechanical energy (its penetration energy is outside the sum). The MuJoCo
+variant is :mod:`benchmarks.robots`; ``make bench`` runs both.
 """
 
 from __future__ import annotations
@@ -54,7 +58,7 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None) -
 
     from engines.pybullet import scenes
     from engines.pybullet.adapter import PybulletAdapter
-    from engines.pybullet.robots import load_mjcf_with_msf_floor, mechanical_energy
+    from engines.pybullet.robots import RestEnergy, load_mjcf_with_msf_floor, mechanical_energy
     from msf_contact import ContactPair, preset
 
     rest_steps = steps if rest_steps is None else rest_steps
@@ -71,28 +75,44 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None) -
         rng = np.random.default_rng(SEED)
         t = time.perf_counter()
         for _ in range(steps):
-            pb.setJointMotorControlArray(uid, joints, pb.TORQUE_CONTROL,
-                                         forces=(rng.uniform(-1.0, 1.0, len(joints)) * bound).tolist(),
-                                         physicsClientId=c)
+            tau = rng.uniform(-1.0, 1.0, len(joints)) * bound
+            if msf:  # pybullet's TORQUE_CONTROL, told to the contacts (PybulletAdapter.set_joint_torques)
+                adapter.set_joint_torques(uid, joints, tau)
+            else:
+                pb.setJointMotorControlArray(uid, joints, pb.TORQUE_CONTROL, forces=tau.tolist(), physicsClientId=c)
             step()
         out = {"step_s": (time.perf_counter() - t) / steps,
                "base_height_m": float(pb.getBasePositionAndOrientation(uid, physicsClientId=c)[0][2])}
         pb.setJointMotorControlArray(uid, joints, pb.TORQUE_CONTROL, forces=[0.0] * len(joints), physicsClientId=c)
-        E = []
+        acc = RestEnergy(adapter, robots) if msf else None
+        E = [acc.total] if msf else [mechanical_energy(c, robots)]
+        C = [acc.contacts] if msf else []
         for _ in range(rest_steps):
             step()
-            E.append(mechanical_energy(c, robots) + (adapter.manager.stored_energy() if msf else 0.0))
+            if msf:
+                E.append(acc.update())
+                C.append(acc.contacts)
+            else:
+                E.append(mechanical_energy(c, robots))
         E = np.array(E)
-        first = rest_steps // 5
-        out.update(rest_energy_J=[float(E[0]), float(E[-1])],
-                   rest_energy_rise_J=float(np.max(E[first:] - E[first])), dt=dt, adapter=adapter,
+        out.update(rest_energy_J=[float(E[0]), float(E[-1])], rest_energy_rise_J=float(np.max(E - E[0])),
+                   rest_rise_J=_rise(E), dt=dt, adapter=adapter,
                    finite=bool(np.all(np.isfinite(pb.getBasePositionAndOrientation(uid, physicsClientId=c)[0]))))
+        if msf:
+            out.update(rest_mechanical_J=acc.mechanical, rest_engine_added_J=acc.engine_added,
+                       rest_contacts_rise_J=_rise(np.array(C)), rest_gain_steps=len(acc.gains),
+                       rest_contact_gain_steps=len(acc.contact_gains))
         if adapter is not None:
             out.update(records=len(adapter.records), managed_contacts=len(adapter.pairs), jumps=adapter.jumps,
                        outside_validity=sum(bool(r.outside_validity) for r in adapter.records))
         return out
     finally:
         pb.disconnect(c)
+
+
+def _rise(E) -> float:
+    """The largest rise of E (n,) above its running minimum [J] (0 for a series that never rises)."""
+    return float(np.max(E - np.minimum.accumulate(E))) if E.size else 0.0
 
 
 def measure(name: str, steps: int) -> dict:
@@ -103,12 +123,20 @@ def measure(name: str, steps: int) -> dict:
         out["dt"] = r.pop("dt")
         out.update({f"{mode}_{k}": v for k, v in r.items()})
     out["ratio_msf_over_builtin"] = out["msf_step_s"] / out["builtin_step_s"]
+    out["rest_steps"] = steps
     return out
 
 
 def _describe(r: dict) -> list[str]:
     return [f"  msf {r['msf_step_s'] * 1e3:.2f} ms, builtin {r['builtin_step_s'] * 1e3:.3f} ms per step; "
-            f"rest energy rise msf {r['msf_rest_energy_rise_J']:.3g} J, builtin {r['builtin_rest_energy_rise_J']:.3g} J"]
+            f"rest energy rise above its start msf {r['msf_rest_energy_rise_J']:.3g} J, builtin "
+            f"{r['builtin_rest_energy_rise_J']:.3g} J; above its running minimum msf {r['msf_rest_rise_J']:.3g} J, "
+            f"builtin {r['builtin_rest_rise_J']:.3g} J",
+            f"  msf rest: account {r['msf_rest_energy_J'][0]:.1f} -> {r['msf_rest_energy_J'][1]:.1f} J "
+            f"(mechanical {r['msf_rest_mechanical_J']:.1f} J at the end), pybullet added "
+            f"{r['msf_rest_engine_added_J']:.3g} J beyond the MSF loads' work, contacts' own balance rise "
+            f"{r['msf_rest_contacts_rise_J']:.3g} J; steps above the bound {r['msf_rest_gain_steps']} "
+            f"(contacts' {r['msf_rest_contact_gain_steps']}) of {r.get('rest_steps', '?')}"]
 
 
 def run(quick: bool = False) -> list[dict]:

@@ -3,13 +3,16 @@ docs/engines.md quotes (issue 13):
 
     .venv/bin/python scripts/pybullet_robots.py dumbbell     # two links on a hinge resting, 1 and 0.2 ms
     .venv/bin/python scripts/pybullet_robots.py ant          # ant.xml resting on its feet, 10, 1 and 0.2 ms
+    .venv/bin/python scripts/pybullet_robots.py twist        # ant.xml on its ankle limits, twisted, 10, 5, 2.5 ms
 
 Each run puts the body on a steel floor (natural rubber, gravity 9.81
 m/s^2), no torques, and prints the mechanical energy plus the elastic
 energy held in the contacts (ContactManager.stored_energy) at the start and
 the end, and
 its largest rise above its running minimum: what a passive body resting on
-dissipative contacts must not show beyond rounding.
+dissipative contacts must not show beyond rounding. ``twist`` also splits
+the account (engines.pybullet.robots.RestEnergy): what pybullet's steps
+added beyond the MSF loads' work, and the contacts' own balance.
 """
 
 from __future__ import annotations
@@ -24,7 +27,7 @@ import pybullet_data
 from engines.base import PairSpec
 from engines.pybullet import scenes
 from engines.pybullet.adapter import PybulletAdapter
-from engines.pybullet.robots import load_mjcf_with_msf_floor, mechanical_energy
+from engines.pybullet.robots import RestEnergy, load_mjcf_with_msf_floor, mechanical_energy
 from msf_contact import ContactPair, Curvature, make_law, preset
 
 PAIR = ContactPair(preset("natural-rubber"), preset("steel"))
@@ -85,15 +88,58 @@ def ant(dt: float, seconds: float) -> str:
         pb.disconnect(c)
 
 
+def twist(dt: float, seconds: float, wz: float = 5.0) -> str:
+    """ant.xml on its ankle limits (where its torques leave it), put down
+    0.5 mm above the floor, 0.5 s to settle, then its torso turned at wz
+    about z and its hips at -wz (its feet stay), no torques, for ``seconds``
+    (tests/test_robots_pybullet.py takes the first second at 10 ms)."""
+    c = scenes.new_client(dt, gravity=9.81)
+    try:
+        robots, floor, pairs, shapes = load_mjcf_with_msf_floor(
+            c, os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml"), PAIR)
+        u = robots[0]
+        for j in range(pb.getNumJoints(u, physicsClientId=c)):
+            info = pb.getJointInfo(u, j, physicsClientId=c)
+            if b"ankle" in info[1]:
+                pb.resetJointState(u, j, info[8] if info[8] > 0 else info[9], 0.0, physicsClientId=c)
+        gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
+        pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
+        pb.resetBasePositionAndOrientation(u, [pos[0], pos[1], pos[2] - gap + 5e-4], orn, physicsClientId=c)
+        ad = PybulletAdapter(c, pairs, link_shapes=shapes)
+        ad.step(int(round(0.5 / dt)))
+        pb.resetBaseVelocity(u, [0, 0, 0], [0, 0, wz], physicsClientId=c)
+        for j in range(pb.getNumJoints(u, physicsClientId=c)):
+            info = pb.getJointInfo(u, j, physicsClientId=c)
+            if b"hip" in info[1]:
+                pb.resetJointState(u, j, pb.getJointState(u, j, physicsClientId=c)[0], -wz, physicsClientId=c)
+        ad.placed([u])
+        acc = RestEnergy(ad, robots)
+        E, C = [acc.total], [acc.contacts]
+        for _ in range(int(round(seconds / dt))):
+            ad.step()
+            E.append(acc.update())
+            C.append(acc.contacts)
+        E, C = np.array(E), np.array(C)
+        return (f"ant twisted on its ankle limits, dt {dt:g} s, {seconds:g} s: E + stored {E[0]:.6g} -> {E[-1]:.6g} J, "
+                f"largest rise above its running minimum {np.max(E - np.minimum.accumulate(E)):.3g} J; pybullet added "
+                f"{acc.engine_added:.3g} J beyond the MSF loads' work; the contacts' own balance rose "
+                f"{np.max(C - np.minimum.accumulate(C)):.3g} J above its running minimum")
+    finally:
+        pb.disconnect(c)
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("case", choices=("dumbbell", "ant"))
+    ap.add_argument("case", choices=("dumbbell", "ant", "twist"))
     args = ap.parse_args()
     if args.case == "dumbbell":
         for shape in ("sphere", "capsule"):
             for dt in (1e-3, 2e-4):
                 print(dumbbell(shape, dt, 0.3))
         print(dumbbell("capsule", 1e-3, 1.0))
+    elif args.case == "twist":
+        for dt in (1e-2, 5e-3, 2.5e-3):
+            print(twist(dt, 2.0))
     else:
         for dt, seconds in ((1e-2, 1.0), (1e-3, 1.0), (2e-4, 0.5)):
             print(ant(dt, seconds))

@@ -313,6 +313,13 @@ class PybulletAdapter(EngineAdapter):
         self._keys = key[self._slot].astype(np.int64)
         self._push = np.full(n, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
         self._cur_bodies: _Bodies | None = None
+        #: the loads the last step applied (pairs (k,), forces (k, 3) [N] on body 1 at points (k, 3) [m],
+        #: couples (k, 3) [N m] or None, the bodies' state at the step start) or None: last_step_work
+        self._last_loads = None
+        #: joint torques set through set_joint_torques for the coming step, and those of the last step,
+        #: per multibody: {uid: (movable joints' torques [N m or N] (m,))} (_torque_dq)
+        self._tau: dict[int, np.ndarray] = {}
+        self._tau_last: dict[int, np.ndarray] = {}
         self.manager.set_coupling(self._keys, self._coupling_blocks)
         self.manager.set_energy_probe(self._energy_probe)  # islands' energy balance (engines._contacts.balance)
         # the free bodies' centres of mass at the last step start (B, 3): pybullet integrates
@@ -785,7 +792,7 @@ class PybulletAdapter(EngineAdapter):
         return cache[uid]
 
     def _joint_state(self, uid):
-        q, qd, _ = self._multibody(uid)
+        q, qd = self._multibody(uid)[:2]
         return q, qd
 
     def _minv(self, uid) -> np.ndarray:
@@ -809,6 +816,63 @@ class PybulletAdapter(EngineAdapter):
             mb[2] = Minv
         return mb[2]
 
+    def set_joint_torques(self, uid: int, joints, torques) -> None:
+        """Set the joint torques [N m, or N for a prismatic joint] of
+        multibody ``uid``'s ``joints`` (joint indices) for the next step,
+        through pybullet (``setJointMotorControlArray(TORQUE_CONTROL)``, which
+        applies them for one ``stepSimulation``: measured, a torque set once
+        accelerates its joint in one step only), and tell the contacts; joints
+        not set have none. The contacts' outside
+        acceleration a_ext is measured from the last step (its finite
+        difference holds the last step's torques): a torque changed at this
+        step would reach them a step late, the whole change of the torque's
+        acceleration J M^-1 dtau missing from the step it acts in (random
+        torques at every 10 ms step of pybullet's ant: the feet's internal
+        approach and the engine's drifted apart by up to 4 mm; the torques
+        switched off, the humanoid's contacts gained 52.6 J in one step,
+        docs/engines.md). With the change told, each contact point of the
+        multibody gets J M^-1 (tau - tau_last) (M^-1 with the joints at a
+        limit held, as its W) added to its a_ext in the step the change acts
+        in. Torques set with pybullet's own call are seen a step late, as
+        before."""
+        uid = int(uid)
+        slots = [j for j in self._art_slots if int(self._b_uid[j]) == uid]
+        if not slots:
+            raise ValueError(f"uid = {uid}: no link of a multibody with that body unique id is in the adapter's pairs")
+        if uid not in self._movable:
+            self._multibody(uid)
+        movable = self._movable[uid]
+        joints = [int(j) for j in np.atleast_1d(joints)]
+        tau = np.asarray(torques, dtype=float).reshape(-1)
+        if tau.size != len(joints):
+            raise ValueError(f"torques has {tau.size} values for {len(joints)} joints")
+        if not np.all(np.isfinite(tau)):
+            raise ValueError(f"torques = {tau!r} must be finite")
+        bad = [j for j in joints if j not in movable]
+        if bad:
+            raise ValueError(f"joints {bad} of body {uid} are not movable joints (movable: {movable})")
+        pb.setJointMotorControlArray(uid, joints, pb.TORQUE_CONTROL, forces=tau.tolist(), physicsClientId=self.client)
+        cur = self._tau.setdefault(uid, np.zeros(len(movable)))
+        cur[[movable.index(j) for j in joints]] = tau
+
+    def _torque_dq(self, uid) -> np.ndarray | None:
+        """M^-1 (tau - tau_last) over the multibody's coordinates [1/s^2 per coordinate] (cached per step)
+        for the torques set through set_joint_torques; None when they did not change."""
+        tau, last = self._tau.get(uid), self._tau_last.get(uid)
+        if tau is None and last is None:
+            return None
+        tau = np.zeros_like(last) if tau is None else tau
+        last = np.zeros_like(tau) if last is None else last
+        if np.array_equal(tau, last):
+            return None
+        mb = self._multibody(uid)
+        if len(mb) < 4:
+            base = 0 if self._base_fixed(uid) else 6
+            gen = np.zeros(base + tau.size)
+            gen[base:] = tau - last
+            mb.append(self._minv(uid) @ gen)
+        return mb[3]
+
     def _limits_engaged(self) -> None:
         """A joint stopped at a limit of its range within the last step was
         stopped by pybullet's rigid limit constraint: an impulse (a knee of
@@ -828,7 +892,7 @@ class PybulletAdapter(EngineAdapter):
             if uid in seen:
                 continue
             seen.add(uid)
-            q, qd, _ = self._multibody(uid)
+            q, qd = self._multibody(uid)[:2]
             q, qd = np.asarray(q, float), np.asarray(qd, float)
             last = self._qd_last.get(uid)
             self._qd_last[uid] = qd
@@ -860,7 +924,7 @@ class PybulletAdapter(EngineAdapter):
         the settled path rose 0.36 J (benchmarks robots_pybullet)."""
         together = np.ones(len(self.pairs), bool)
         for uid in {int(self._b_uid[j]) for j in self._art_slots}:
-            q, _, _ = self._multibody(uid)
+            q = self._multibody(uid)[0]
             if self._held_dofs(uid, q).size:
                 side = self._b_art[self._slot] & (self._b_uid[self._slot] == uid)
                 together &= ~(side[:, 0] | side[:, 1])
@@ -993,6 +1057,10 @@ class PybulletAdapter(EngineAdapter):
                 a_ext = (v_rel - self._last_v_rel[i] - self._last_dv[i]) / self._dt
             else:
                 a_ext = grav * (self._free(b1) - self._free(b2))
+            for b, pose, sign in ((b1, poses[0], 1.0), (b2, poses[1], -1.0)):
+                dq = self._torque_dq(b[0]) if self._b_art[self._slot[i, 0 if sign > 0 else 1]] else None
+                if dq is not None:  # this step's change of the joint torques (set_joint_torques)
+                    a_ext = a_ext + sign * (self._jacobian(b, pose, point) @ dq)
             self._last_a_ext[i] = a_ext
             rows.append((i, x, nrm, point, v_rel, v_com_rel, a_ext, poses))
         return rows
@@ -1235,19 +1303,60 @@ class PybulletAdapter(EngineAdapter):
         pair = np.asarray(out.pair, int)
         force = np.asarray(out.force, float)
         hit = np.flatnonzero(np.any(force != 0.0, axis=1))
+        self._last_loads = None
         if hit.size:
             ph, F = pair[hit], force[hit]
             self._cross_dv(bodies, ph, F * dt, kin.W[hit])
             self.impulse[ph] += F * dt
             self._apply(bodies, ph, F, np.asarray(out.point, float)[hit])
+            couples = None
             if out.torque is not None:
-                self._apply_couples(bodies, ph, np.asarray(out.torque, float)[hit])
+                couples = np.asarray(out.torque, float)[hit]
+                self._apply_couples(bodies, ph, couples)
+            self._last_loads = (ph, F, np.asarray(out.point, float)[hit], couples, bodies)
         pb.stepSimulation(self.client)
         self._steps += 1
+        self._tau_last, self._tau = self._tau, {}  # pybullet applies TORQUE_CONTROL torques for one step
         # pairs in contact or that exerted a force this step (a contact may begin and end inside it)
         touched = np.union1d(self.manager.active_pairs, pair[hit])
         if touched.size:
             self._see_motors(touched)
+
+    def last_step_work(self, bodies=None) -> float:
+        """Work [J] the MSF forces (and the couples of moving contact points)
+        of the last :meth:`step` did on the moving bodies in pybullet's step,
+        of ``bodies`` (body unique ids; default all): for each load and body,
+        +-F . (v_start + v_end) / 2 dt at the material point it acted on
+        (+-tq . (w_start + w_end) / 2 dt for a couple), v_start from the
+        step's start and v_end read now (call it right after ``step``). With
+        the mass matrix fixed over a step this is the kinetic energy the loads
+        gave (semi-implicit Euler: exact for a body that does not turn). A
+        turning body's step gives it up to a few % of this more or less: its
+        new orientation, from the new velocity, enters its inertia and its
+        links' Jacobians (measured on one step of a box spinning at 5 rad/s:
+        2.4 % of a force's work; on the ant's legs turning at 5 rad/s with an
+        ankle on its limit: 5-7 %). 0 when the last step applied no load."""
+        if self._last_loads is None:
+            return 0.0
+        ph, F, point, couples, b0 = self._last_loads
+        keep = None if bodies is None else {int(u) for u in bodies}
+        c, work, end = self.client, 0.0, {}
+        for q, i in enumerate(ph.tolist()):
+            for side, sign in ((0, 1.0), (1, -1.0)):
+                j = int(self._slot[i, side])
+                uid, link = self._body_list[j]
+                if self._b_fixed[j] or (keep is not None and uid not in keep):
+                    continue
+                if j not in end:
+                    end[j] = self._pose((uid, link))
+                e = end[j]
+                local = b0.rot[j].T @ (point[q] - b0.com[j])  # the material point, in the body's frame
+                v0 = b0.v[j] + np.cross(b0.w[j], point[q] - b0.com[j])
+                v1 = e.v + np.cross(e.w, e.rot @ local)
+                work += sign * float(F[q] @ (v0 + v1)) * 0.5 * self._dt
+                if couples is not None and self._b_free[j]:  # on both free bodies alike (_apply_couples)
+                    work += float(couples[q] @ (b0.w[j] + e.w)) * 0.5 * self._dt
+        return work
 
     def _lever(self, bodies: _Bodies, kin: ContactKinematics) -> np.ndarray | None:
         """The moving contact point of the rows of free bodies (engines._contacts.state.LEVER_DOC,

@@ -44,6 +44,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pybullet as pb
 
+from engines._contacts.state import ENERGY_GAIN_RTOL
 from engines.base import PairSpec
 from engines.pybullet.narrow import LinkShape
 from msf_contact.curvature import tangent_basis
@@ -336,9 +337,15 @@ def mechanical_energy(client: int, uids) -> float:
     """Kinetic plus gravitational potential energy [J] of the bodies ``uids``
     (every link: 1/2 m v^2 + 1/2 w.I w - m g.z, world inertia from the
     inertial frame's principal axes)."""
+    T, U, _ = _mechanical(client, uids)
+    return T + U
+
+
+def _mechanical(client: int, uids) -> tuple[float, float, float]:
+    """(kinetic [J], gravitational potential energy [J], gravity's power on the bodies sum m g . v [W])."""
     g = np.array([pb.getPhysicsEngineParameters(physicsClientId=client)[k]
                   for k in ("gravityAccelerationX", "gravityAccelerationY", "gravityAccelerationZ")])
-    E = 0.0
+    T = U = P = 0.0
     for u in uids:
         nj = pb.getNumJoints(u, physicsClientId=client)
         states = [(*pb.getBasePositionAndOrientation(u, physicsClientId=client),
@@ -352,9 +359,92 @@ def mechanical_energy(client: int, uids) -> float:
             R = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3)
             wb = R.T @ np.asarray(w, float)
             v = np.asarray(v, float)
-            E += 0.5 * m * v @ v + 0.5 * wb @ (I * wb) - m * g @ np.asarray(pos, float)
-    return float(E)
+            T += 0.5 * m * v @ v + 0.5 * wb @ (I * wb)
+            U -= m * g @ np.asarray(pos, float)
+            P += m * g @ v
+    return float(T), float(U), float(P)
 
 
-__all__ = ["load_mjcf", "load_mjcf_with_msf_floor", "mechanical_energy", "motor_torque_limits",
-           "place_joints_in_range", "probe_link_shapes", "unit_joint_axes"]
+#: A rest step may raise the account of :class:`RestEnergy` by this share of
+#: the kinetic energy at its start (the contacts' own bound,
+#: engines._contacts.state.ENERGY_GAIN_RTOL, as engines.mujoco.robots.RestEnergy),
+#: plus, for the whole account, the semi-implicit Euler step's gravity term
+#: dt/2 |M g . dv_com| (it moves the bodies by dt v_end: the potential energy
+#: leads the work gravity did by that much, engines._contacts.balance).
+REST_GAIN_RTOL = ENERGY_GAIN_RTOL
+#: and the float rounding of the account's terms relative to their size
+#: (engines.mujoco.robots.REST_ROUNDOFF: two orders above the double's 2.2e-16).
+REST_ROUNDOFF = 1e-13
+
+
+class RestEnergy:
+    """The energy account of robots stepped by a
+    :class:`engines.pybullet.adapter.PybulletAdapter` [J], and who moved it.
+
+    ``total``: kinetic + gravitational energy of the bodies ``uids``
+    (:func:`mechanical_energy`) plus the energy held in and exchanged by the MSF
+    contacts (``ContactManager.stored_energy``). ``engine_added``: what
+    pybullet's steps gave the bodies beyond the work of the MSF loads
+    (:meth:`PybulletAdapter.last_step_work`), summed: the work of its
+    joint-limit constraint impulses (pybullet does not report them: its
+    joint force-torque sensor gives no torque about a limited hinge's axis),
+    of its damping (a loss), of any motor or user force, the semi-implicit
+    step's gravity term and its integration error on turning links (a turning
+    link's new orientation, taken from the step's new velocity, enters its
+    inertia and Jacobians: the work of a force on it comes out a few % off,
+    :meth:`PybulletAdapter.last_step_work`). ``contacts = total -
+    engine_added``: the MSF contacts' own balance, what they stored and
+    exchanged against the work their loads did in the engine; with the
+    adapter's inverse inertias right it changes only by the contacts'
+    viscous and slip losses (falls).
+
+    With no torque and no external force, a step that raises ``total`` by
+    more than REST_GAIN_RTOL of the kinetic energy at its start plus the
+    gravity term dt/2 |M g . dv_com| (and REST_ROUNDOFF) is listed in
+    ``gains`` (step, rise [J], allowed [J], engine's part [J]); a step that
+    raises ``contacts`` beyond REST_GAIN_RTOL of the kinetic energy (and
+    REST_ROUNDOFF) in ``contact_gains`` (step, rise, allowed). MuJoCo's
+    counterpart, engines.mujoco.robots.RestEnergy, reads its limit forces and
+    counts their work; pybullet's are only in ``engine_added``.
+
+    Use: ``acc = RestEnergy(adapter, uids)`` before a step, ``acc.update()``
+    right after every ``adapter.step()``."""
+
+    def __init__(self, adapter, uids):
+        self.adapter, self.uids = adapter, [int(u) for u in uids]
+        self.client = adapter.client
+        self.dt = adapter.timestep
+        self.engine_added = 0.0  #: energy pybullet's steps added beyond the MSF loads' work since the start [J]
+        self.gains: list[tuple[int, float, float, float]] = []  #: (step, rise, allowed, engine's part) [J]
+        self.contact_gains: list[tuple[int, float, float]] = []  #: (step, rise, allowed) of ``contacts`` [J]
+        self.steps = 0
+        self._read()
+
+    def _read(self) -> None:
+        self.kinetic, U, self._power = _mechanical(self.client, self.uids)
+        self.mechanical = self.kinetic + U  #: kinetic + potential energy now [J]
+        self.stored = self.adapter.manager.stored_energy()  #: the contacts' [J]
+        self.total = self.mechanical + self.stored  #: the account [J]
+        self.contacts = self.total - self.engine_added  #: the MSF contacts' own balance [J]
+
+    def update(self) -> float:
+        """After an ``adapter.step()``: the account now [J]; rises beyond the bounds listed."""
+        W = self.adapter.last_step_work(self.uids)
+        T0, P0, E0, tot0, con0 = self.kinetic, self._power, self.mechanical, self.total, self.contacts
+        self._read()
+        d_engine = (self.mechanical - E0) - W
+        self.engine_added += d_engine
+        self.contacts = self.total - self.engine_added
+        self.steps += 1
+        round_off = REST_ROUNDOFF * (abs(self.mechanical) + abs(self.stored) + abs(self.engine_added))
+        allowed = REST_GAIN_RTOL * T0 + 0.5 * self.dt * abs(self._power - P0) + round_off
+        if self.total - tot0 > allowed:
+            self.gains.append((self.steps, self.total - tot0, allowed, d_engine))
+        allowed_c = REST_GAIN_RTOL * T0 + round_off
+        if self.contacts - con0 > allowed_c:
+            self.contact_gains.append((self.steps, self.contacts - con0, allowed_c))
+        return self.total
+
+
+__all__ = ["REST_GAIN_RTOL", "RestEnergy", "load_mjcf", "load_mjcf_with_msf_floor", "mechanical_energy",
+           "motor_torque_limits", "place_joints_in_range", "probe_link_shapes", "unit_joint_axes"]
