@@ -49,10 +49,14 @@ def drive(client: int, uid: int, path: str):
     return joints, bound
 
 
-def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None) -> dict:
-    """One variant: ``steps`` steps of seeded torques then ``rest_steps``
-    (default ``steps``) without; the record's fields (module docstring) and
-    the adapter (None for the built-in contact)."""
+def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *, seed: int = SEED,
+              tell: bool = True) -> dict:
+    """One variant: ``steps`` steps of torques seeded with ``seed`` then
+    ``rest_steps`` (default ``steps``) without; the record's fields (module
+    docstring) and the adapter (None for the built-in contact). tell: with
+    MSF, set the torques through ``PybulletAdapter.set_joint_torques`` (the
+    contacts see them in their step); False: through pybullet's own call
+    (seen a step late)."""
     import pybullet as pb
     import pybullet_data
 
@@ -72,11 +76,11 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None) -
         joints, bound = drive(c, uid, path)
         adapter = PybulletAdapter(c, pairs, link_shapes=shapes) if msf else None
         step = adapter.step if msf else (lambda: pb.stepSimulation(physicsClientId=c))
-        rng = np.random.default_rng(SEED)
+        rng = np.random.default_rng(seed)
         t = time.perf_counter()
         for _ in range(steps):
             tau = rng.uniform(-1.0, 1.0, len(joints)) * bound
-            if msf:  # pybullet's TORQUE_CONTROL, told to the contacts (PybulletAdapter.set_joint_torques)
+            if msf and tell:  # pybullet's TORQUE_CONTROL, told to the contacts (PybulletAdapter.set_joint_torques)
                 adapter.set_joint_torques(uid, joints, tau)
             else:
                 pb.setJointMotorControlArray(uid, joints, pb.TORQUE_CONTROL, forces=tau.tolist(), physicsClientId=c)

@@ -4,6 +4,7 @@ docs/engines.md quotes (issue 13):
     .venv/bin/python scripts/pybullet_robots.py dumbbell     # two links on a hinge resting, 1 and 0.2 ms
     .venv/bin/python scripts/pybullet_robots.py ant          # ant.xml resting on its feet, 10, 1 and 0.2 ms
     .venv/bin/python scripts/pybullet_robots.py twist        # ant.xml on its ankle limits, twisted, 10, 5, 2.5 ms
+    .venv/bin/python scripts/pybullet_robots.py seeds        # the robots_pybullet benchmark's ant, seeds 13, 1, 2, 3
 
 Each run puts the body on a steel floor (natural rubber, gravity 9.81
 m/s^2), no torques, and prints the mechanical energy plus the elastic
@@ -128,15 +129,36 @@ def twist(dt: float, seconds: float, wz: float = 5.0) -> str:
         pb.disconnect(c)
 
 
+def seeds(tell: bool) -> list[str]:
+    """The robots_pybullet benchmark's MSF ant (1,000 steps of torques, 1,000
+    at rest) under seeds 13 (the benchmark's), 1, 2 and 3, the torques told
+    to the adapter or set through pybullet's own call (seen a step late)."""
+    import sys
+
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir))
+    from benchmarks.robots_pybullet import run_model
+
+    out = []
+    for seed in (13, 1, 2, 3):
+        r = run_model("ant.xml", 1000, True, seed=seed, tell=tell)
+        out.append(f"ant, seed {seed}, torques {'told' if tell else 'late'}: rest {r['rest_energy_J'][0]:.1f} -> "
+                   f"{r['rest_energy_J'][1]:.1f} J, rise above the running minimum {r['rest_rise_J']:.3g} J, pybullet "
+                   f"added {r['rest_engine_added_J']:.3g} J, the contacts' own balance rose {r['rest_contacts_rise_J']:.3g} J")
+    return out
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("case", choices=("dumbbell", "ant", "twist"))
+    ap.add_argument("case", choices=("dumbbell", "ant", "twist", "seeds"))
     args = ap.parse_args()
     if args.case == "dumbbell":
         for shape in ("sphere", "capsule"):
             for dt in (1e-3, 2e-4):
                 print(dumbbell(shape, dt, 0.3))
         print(dumbbell("capsule", 1e-3, 1.0))
+    elif args.case == "seeds":
+        for tell in (True, False):
+            print("\n".join(seeds(tell)))
     elif args.case == "twist":
         for dt in (1e-2, 5e-3, 2.5e-3):
             print(twist(dt, 2.0))
