@@ -40,7 +40,9 @@ than REST_SPEED, and the end state against statics: the floor's and walls'
 vertical force on the spheres against their weight, and each contact's
 overlap against the static overlap of the law's elastic force for the
 normal force it carries, and the engine's own overlaps from the sphere
-centres (engine_overlaps) against the same; the wall time per step.
+centres (engine_overlaps) against the same; the wall and CPU time per step
+(the process's, ``time.process_time``: on a shared machine the wall time
+is the load's).
 """
 
 from __future__ import annotations
@@ -246,7 +248,7 @@ def _static_summary(prefix: str, rel: np.ndarray, w_mean: float) -> dict:
 
 def run(engine: str, n: int, side: int, steps: int, dt: float, every: int = 0, rest_steps: int = 0) -> dict:
     """The pile for up to ``steps`` steps (the module docstring's report). every > 0: a progress line
-    (step, fastest sphere, largest rise of E so far, islands flagged, wall time per step) on stderr
+    (step, fastest sphere, largest rise of E so far, islands flagged, wall and CPU time per step) on stderr
     every that many steps; rest_steps > 0: stop once every sphere has stayed below REST_SPEED for
     that many steps."""
     builder = build_mujoco if engine == "mujoco" else build_pybullet
@@ -264,7 +266,7 @@ def run(engine: str, n: int, side: int, steps: int, dt: float, every: int = 0, r
     mgr.step = step
     records = []
     exploded, rest_from = None, None
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         with ctx:
@@ -286,7 +288,8 @@ def run(engine: str, n: int, side: int, steps: int, dt: float, every: int = 0, r
                     rise = float(np.max(np.diff(seq), initial=0.0))
                     print(json.dumps({"step": k, "v_max_m_s": float(v.max()), "E_J": seq[-1], "E_max_step_rise_J": rise,
                                       "island_steps_flagged": len(mgr.island_energy_gains),
-                                      "wall_s_per_step": (time.perf_counter() - t0) / len(seq)}), file=sys.stderr,
+                                      "wall_s_per_step": (time.perf_counter() - t0) / len(seq),
+                                      "cpu_s_per_step": (time.process_time() - c0) / len(seq)}), file=sys.stderr,
                           flush=True)
                 if rest_steps and rest_from is not None and k - rest_from >= rest_steps:
                     break
@@ -297,7 +300,7 @@ def run(engine: str, n: int, side: int, steps: int, dt: float, every: int = 0, r
             support = sum(float(r.force[2]) for r in forces if wall_pairs[r.pair])
             rel = static_overlaps(ad)
             rel_eng = static_overlaps(ad, engine_overlaps(n, side, centres()))
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     E = np.array(seq)
     rise = np.diff(E)
     gains = mgr.island_energy_gains
@@ -313,7 +316,7 @@ def run(engine: str, n: int, side: int, steps: int, dt: float, every: int = 0, r
                 "v_max_end_m_s": v_end, "at_rest_from_step": rest_from, "exploded_at_step": exploded,
                 "support_over_weight": support / weight, "contacts_end": int(rel.shape[0]),
                 **_static_summary("", rel, weight / n), **_static_summary("engine_", rel_eng, weight / n),
-                "wall_s_per_step": wall / (len(seq))})
+                "wall_s_per_step": wall / len(seq), "cpu_s_per_step": cpu / len(seq)})
     return out
 
 
