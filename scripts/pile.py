@@ -61,7 +61,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from engines._contacts.islands import TOUCH_TOL  # noqa: E402
 from engines.base import PairSpec  # noqa: E402
-from msf_contact import Body, ContactPair, Curvature, make_law, preset  # noqa: E402
+from msf_contact import Body, ContactPair, Curvature, make_law, preset, static_overlap  # noqa: E402
 
 R, G = 0.01, 9.81
 STEEL, RUBBER = preset("steel"), preset("natural-rubber")
@@ -203,10 +203,10 @@ def energy(ad, keys) -> float:
 
 
 def static_overlaps(ad, x_engine=None) -> np.ndarray:
-    """Per contact of the last step, |x - x_s| / x_s (k,): the manager's overlap x (or, with
-    x_engine (P,) [m], the engine's own, engine_overlaps) against x_s, the overlap at which the law's
-    elastic force F_n(x_s, 0) (the force law at zero rate, the contact's onset constants) equals the
-    normal force it carried (bisection on the monotone elastic force)."""
+    """Per contact of the last step, (|x - x_s| / x_s, |x - x_s| [m], F_n [N]) (k, 3): the manager's
+    overlap x (or, with x_engine (P,) [m], the engine's own, engine_overlaps) against x_s, the static
+    overlap of the normal force F_n it carried (msf_contact.static_overlap: F_n(x_s, 0) = F_n, the law
+    at zero rate with the contact's onset constants)."""
     mgr = ad.manager
     rel = []
     for r in ad.contact_forces():
@@ -215,18 +215,8 @@ def static_overlaps(ad, x_engine=None) -> np.ndarray:
         p = r.pair
         g = mgr._group_of[p]
         o = {k: v[mgr._pos[[p]]] for k, v in mgr._onset[g].items()}
-        law = mgr._groups[g]
-        lo, hi = 0.0, 4.0 * r.overlap
-        while float(law.contact_normal_force(np.array([hi]), np.zeros(1), o)[0]) < r.F_n:
-            hi *= 2.0
-        for _ in range(80):
-            mid = 0.5 * (lo + hi)
-            if float(law.contact_normal_force(np.array([mid]), np.zeros(1), o)[0]) < r.F_n:
-                lo = mid
-            else:
-                hi = mid
+        x_s = float(static_overlap(mgr._groups[g], r.F_n, o)[0])
         x = r.overlap if x_engine is None else float(x_engine[p])
-        x_s = 0.5 * (lo + hi)
         rel.append((abs(x - x_s) / x_s, abs(x - x_s), r.F_n))
     return np.array(rel).reshape(-1, 3)
 
