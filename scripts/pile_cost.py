@@ -15,7 +15,7 @@ internal step each contact row of the largest island would take alone
 (``h_row``: pi sqrt(m/k) / SUBSTEPS_PER_CONTACT at its overlap, the
 kernel's ``_stiff_step`` of that row) against the one the island takes
 (the smallest): an island integrates all its rows at its stiffest
-contact's step.
+contact's step; and the CPU time of one RK4 substep of that island.
 """
 
 from __future__ import annotations
@@ -86,7 +86,7 @@ def measure(engine: str, n: int, side: int, skip: int, steps: int, dt: float = 1
             cpu = (time.process_time() - c0) / steps
         finally:
             IC.IK = IK
-        h_row = _row_steps(last.get("args"))
+        rs = _row_steps(last.get("args"))
     st = pstats.Stats(prof)
     total = sum(v[2] for v in st.stats.values())  # own time of every function
     kern = sum(v[2] for k, v in st.stats.items() if k[2] == "advance_islands")
@@ -95,9 +95,11 @@ def measure(engine: str, n: int, side: int, skip: int, steps: int, dt: float = 1
     out = {"engine": engine, "n": n, "side": side, "pairs": len(mgr.pairs), "after_step": skip, "steps": steps,
            "cpu_s_per_step": cpu, "share_in_island_kernel": kern / total if total else 0.0,
            "top_own_time_s": [(round(t / steps, 6), name) for t, name in own], "mean_per_step": mean}
-    if h_row is not None and h_row.size:
+    if rs is not None and rs[0].size:
+        h_row = rs[0]
         out.update({"h_island_s": float(h_row.min()), "h_row_median_s": float(np.median(h_row)),
-                    "rows_below_2x_h_island": int(np.count_nonzero(h_row < 2 * h_row.min()))})
+                    "rows_below_2x_h_island": int(np.count_nonzero(h_row < 2 * h_row.min())),
+                    "rk4_substep_cpu_s": rs[1]})
     return out
 
 
@@ -111,19 +113,31 @@ class _Shim:
         return getattr(IK, name)
 
 
-def _row_steps(a) -> np.ndarray | None:
+def _row_steps(a) -> tuple[np.ndarray, float] | None:
     """h_row (module docstring) of the contact rows with x > 0 of the largest island of the call's
-    arguments a (advance_islands')."""
+    arguments a (advance_islands'), and the CPU time [s] of one RK4 substep of that island (the
+    kernel's _rk4 at its state, on copies, median of 20)."""
     if a is None:
         return None
     g = inspect.signature(IK.advance_islands.py_func).bind(*a).arguments
-    io = g["io"]
+    io, cio = g["io"], g["cio"]
     i = int(np.argmax(np.diff(io)))
     pairs, n, W, kg, codes, LC, oc, y, in_c = (g[k] for k in ("pairs", "n", "W", "kg", "codes", "LC", "oc", "y", "in_c"))
     buf = np.empty(6)
-    out = [IK._stiff_step(r, r + 1, pairs, n, W, kg, codes, LC, oc, in_c, y, buf, float(SUBSTEPS_PER_CONTACT))
-           for r in range(int(io[i]), int(io[i + 1])) if in_c[r] and y[r, 0] > 0]
-    return np.array(out)
+    h = np.array([IK._stiff_step(r, r + 1, pairs, n, W, kg, codes, LC, oc, in_c, y, buf, float(SUBSTEPS_PER_CONTACT))
+                  for r in range(int(io[i]), int(io[i + 1])) if in_c[r] and y[r, 0] > 0])
+    cp, cq = g["cp"], g["cq"]
+    eb = np.flatnonzero(in_c[cq[cio[i]:cio[i + 1]]]).astype(np.int64) + cio[i]  # as _island lists them
+    work, out, F = np.empty_like(g["work"]), np.empty_like(y), np.zeros_like(g["F"])
+    args = (int(io[i]), int(io[i + 1]), int(cio[i]), int(cio[i]) + eb.size, pairs, n, g["T"], W, g["Wc"], g["a"],
+            g["paper"], g["Lr"], kg, codes, LC, oc, cp, cq, g["Wpq"], g["Wcpq"], np.r_[np.zeros(cio[i], np.int64), eb],
+            in_c, y.copy(), float(h.min()) if h.size else 1e-6, out, work, F, buf, False)
+    times = []
+    for _ in range(20):
+        c0 = time.process_time()
+        IK._rk4(*args)
+        times.append(time.process_time() - c0)
+    return h, float(np.median(times))
 
 
 def main(argv=None) -> None:
