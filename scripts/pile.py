@@ -32,7 +32,12 @@ their removal uses):
   rose by |s|^2 dk / 2 with no work, issue 13.)
 
 Reported (stdout, one JSON line): E at the start and the end,
-its largest rise in one step and the step, the sum of its rises; the
+its largest rise in one step and the step, the sum of its rises, and its
+largest rise beyond (dt/2)|dq| (q = gravity's power m g . v: a settled
+step, the resting contacts' backward Euler, is exact in kinetic +
+potential at z + stored, and E differs from that by dt q / 2, so a
+settling pile's E moves by up to (dt/2)|dq| a step with no gain; the
+island check allows the same term, engines._contacts.balance); the
 island energy check (island steps flagged, largest gain); onsets found
 already overlapping (records' x_onset > TOUCH_TOL); settling: the fastest
 sphere at the end, the first step from which every sphere stays slower
@@ -249,7 +254,10 @@ def run(engine: str, n: int, side: int, steps: int, dt: float, every: int = 0, r
     seq: list[float] = []
     inner = mgr.step
 
+    hq: list[float] = []  # (dt/2) q at each step start, q gravity's power m g . v [J]
+
     def step(kin):  # the energy at the step start, inside the hook (module docstring)
+        hq.append(0.5 * mgr.dt * float(np.sum(_probe(ad, keys)[2])))
         seq.append(energy(ad, keys))
         return inner(kin)
 
@@ -299,7 +307,8 @@ def run(engine: str, n: int, side: int, steps: int, dt: float, every: int = 0, r
     out.update({"E_start_J": float(E[0]), "E_end_J": float(E[-1]),
                 "E_max_step_rise_J": float(max(rise.max(initial=0.0), 0.0)),
                 "E_max_rise_step": int(np.argmax(rise)) if rise.size and rise.max() > 0 else -1,
-                "E_sum_of_rises_J": float(np.sum(np.maximum(rise, 0.0)))})
+                "E_sum_of_rises_J": float(np.sum(np.maximum(rise, 0.0))),
+                "E_max_step_rise_beyond_dq_J": float(max((rise - np.abs(np.diff(hq))).max(initial=0.0), 0.0))})
     out.update({"island_steps_flagged": len(gains), "largest_island_gain_J": max((g[2] for g in gains), default=0.0),
                 "deep_onsets": int(np.count_nonzero(x_on > TOUCH_TOL)),
                 "deepest_onset_m": float(max(x_on.max(initial=0), 0)),
