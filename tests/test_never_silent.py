@@ -142,3 +142,27 @@ def test_small_strain_warnings_are_capped_but_every_record_is_flagged():
     recs = eng.mgr.pop_records()
     assert len(recs) == n
     assert all(any("small-strain" in s for s in r.outside_validity) for r in recs)
+
+
+def test_a_law_refusing_every_onset_speed_is_an_error_naming_the_pair():
+    """The failsafe of the onset cap (records._onset_in_range): a contact whose
+    onset speed takes the approach past 2R gets the constants of the largest
+    speed the law accepts, found by halving the speed. A law that refuses
+    even 2^-64 of it cannot be capped: the manager raises, naming the pair,
+    the last speed tried and the mass, instead of looping or storing NaN.
+    No real MSF law does this (its approach goes to 0 with the speed), so
+    the law here is a stand-in that refuses every speed."""
+    from engines._contacts import ContactManager
+    from engines.base import PairSpec
+
+    class RefusesEverySpeed:
+        x_limit = 2 * R_BEAD  # [m] the 2R of (15)
+
+        def onset(self, v, m):
+            raise ValueError(f"the msf approach reaches 2R = {self.x_limit} m before maximum compression (15)")
+
+    mgr = ContactManager([PairSpec("bead", "plate", bead_law())], 1e-4, "fake")
+    m = 6.5e-8  # [kg] about a 0.25 mm glass bead
+    with pytest.raises(ValueError, match=r"^pair 0: the law refuses every onset speed down to \S+ m/s "
+                                         r"\(mass 6\.5e-08 kg\)$"):
+        mgr._onset_in_range(RefusesEverySpeed(), np.array([0]), np.array([50.0]), np.array([m]))
