@@ -119,6 +119,35 @@ def test_the_ant_whose_legs_slam_onto_their_limits_gains_no_energy():
     assert account.gains == []
 
 
+def test_the_humanoid_resting_on_its_limbs_keeps_the_rk4_island():
+    """The humanoid of benchmarks/robots.py (seed 13, 2 ms): 1,000 steps of
+    seeded torques, then 150 at rest: no rest step above RestEnergy's bound.
+    Its limbs' contacts are own-gap pairs (links on the fixed floor) but not
+    free bodies: a resting island of them keeps the RK4 island
+    (ContactManager.settle_rigid, cleared by the MuJoCo adapter for links),
+    not the settled island step of free bodies (engines._contacts.resting).
+    With that step (main 751b2d1) a shin's force went 62 -> 246 N in the
+    step after it and the account rose 93 mJ in rest step 139 (5 mJ
+    allowed)."""
+    from engines.mujoco.robots import RestEnergy
+
+    path = os.path.join(pybullet_data.getDataPath(), "mjcf", "humanoid.xml")
+    model, data, pairs = load_with_msf_floor(path, ContactPair(preset("natural-rubber"), preset("steel")))
+    adapter = MujocoAdapter(model, data, pairs)
+    rng = np.random.default_rng(SEED)
+    lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
+    with installed(adapter):
+        for _ in range(1000):
+            data.ctrl[:] = rng.uniform(lo, hi)
+            mujoco.mj_step(model, data)
+        data.ctrl[:] = 0.0
+        account = RestEnergy(model, data, adapter)
+        for _ in range(150):
+            mujoco.mj_step(model, data)
+            account.update()
+    assert account.gains == []
+
+
 def _account_of(xml: str, steps: int, qpos0=None):
     """(model, data, RestEnergy account, kinetic + potential energy lost [J])
     of the model ``xml`` let go from qpos0 (default the model's) for ``steps``."""
