@@ -59,6 +59,7 @@ import math
 import numpy as np
 
 from .reference import _Batch, _find_root
+from .resting import store_end_state
 from .state import (
     initial_state, lever_start,
     _G, _P, _PD, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, MAX_SEGMENTS, NY, SUBSTEPS_PER_CONTACT, _dot, _Rows,
@@ -416,12 +417,7 @@ def write_back(mgr, p, n, W, Wc, y, in_c, t0, cp, cq, Wpq, Wcpq) -> np.ndarray:
     dt = mgr.dt
     k = p.size
     mgr.active[p] = in_c
-    mgr.x[p] = y[:, _X]
-    mgr.xdot[p] = -_dot(y[:, _V], n)
-    mgr.s[p] = y[:, _S]
-    mgr.vc[p] = y[:, _VC]
-    mgr.W_el[p], mgr.W_visc[p], mgr.Q_t[p], mgr.W_t[p] = y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT]
-    mgr.phase[p] = np.where(mgr.xdot[p] < 0, 1, 0)
+    store_end_state(mgr, p, n, y)
     gid = mgr._group_of[p]
     for g in np.unique(gid):
         idx = np.flatnonzero(gid == g)

@@ -22,6 +22,7 @@ import numpy as np
 
 from msf_contact.laws import ForceLaw
 
+from .resting import book_records
 from .state import (
     initial_state, lever_start,
     _G, _P, _PD, _PI, _Q, _S, _V, _VC, _WEL, _WT, _WVI, _X, F_RATIO_FLOOR, L_ON, L_W01, L_W11, L_XREF, MAX_SEGMENTS, NY, ROOT_ITER, ROOT_TOL,
@@ -415,23 +416,7 @@ class NumpyPath:
         y[rows, _Q] += np.einsum("ka,ka->k", bt * z[:, 1:], z[:, 1:]) * dt
         y[rows, _WT] -= _dot(f - Fn[:, None] * n, v1 - _dot(v1, n)[:, None] * n) * dt
         # record bookkeeping, as one substep at the end state
-        pp = p[rows]
-        turn = ~self.turned[pp] & (xd_e <= 0)
-        if np.any(turn):
-            q = pp[turn]
-            self.turned[q] = True
-            self.tau1[q] = t0 + dt - self.t_onset[q]
-            self.x_turn[q] = x_e[turn]
-            self.W_el_comp[q] = y[rows[turn], _WEL]
-            self.W_visc_comp[q] = y[rows[turn], _WVI]
-        better = Fn > self.F_max[pp]
-        self.x_at_F[pp] = np.where(better, x_e, self.x_at_F[pp])
-        self.F_max[pp] = np.maximum(self.F_max[pp], Fn)
-        self.x_max[pp] = np.maximum(self.x_max[pp], x_e)
-        okr = Fn >= F_RATIO_FLOOR * self.F_max[pp]
-        ratio = np.where(okr, np.hypot(Ft[:, 0], Ft[:, 1]) / Fn, 0.0)
-        self.f_min[pp] = np.where(okr, np.minimum(self.f_min[pp], ratio), self.f_min[pp])
-        self.f_max[pp] = np.where(okr, np.maximum(self.f_max[pp], ratio), self.f_max[pp])
+        book_records(self, p[rows], x_e, xd_e, Fn, Ft, y[rows], t0)
         info["settled"] += int(rows.size)
         return rows
 

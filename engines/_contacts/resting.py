@@ -185,13 +185,16 @@ def settle_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq
     y[:, _WVI] += (Fn - Fc) * dx
     y[:, _Q] += np.einsum("ka,ka->k", bt * z[:, 1:], z[:, 1:]) * dt
     y[:, _WT] -= _dot(f - Fn[:, None] * n, v1 - _dot(v1, n)[:, None] * n) * dt
-    _records(mgr, p, x_e, xd_e, Fn, Ft, y, t0)
+    book_records(mgr, p, x_e, xd_e, Fn, Ft, y, t0)
     info["settled"] += k
     return _write_back(mgr, p, n, y, groups, t0)
 
 
-def _records(mgr, p, x_e, xd_e, Fn, Ft, y, t0):
-    """The record bookkeeping of the rows, as one substep at the end state (NumpyPath._settled)."""
+def book_records(mgr, p, x_e, xd_e, Fn, Ft, y, t0):
+    """The record bookkeeping of rows p (k,) of manager mgr after a settled step, as one substep at the
+    end state: the turning point (tau1, x_turn, the compression's work), F_max and its x, x_max and the
+    range of |F_t|/F_n. x_e, xd_e, Fn (k,) [m, m/s, N], Ft (k, 2) [N], y (k, NY) the rows' end state,
+    t0 the step's start [s]. Shared by NumpyPath._settled and the resting island step."""
     dt = mgr.dt
     turn = ~mgr.turned[p] & (xd_e <= 0)
     if np.any(turn):
@@ -211,17 +214,25 @@ def _records(mgr, p, x_e, xd_e, Fn, Ft, y, t0):
     mgr.f_max[p] = np.where(okr, np.maximum(mgr.f_max[p], ratio), mgr.f_max[p])
 
 
-def _write_back(mgr, p, n, y, groups, t0):
-    """The rows' end state into the manager (as NumpyPath._step_group for settled rows: no timing
-    correction, the force is held over the whole step); returns the impulses P - J_previous (k, 3)."""
-    dt = mgr.dt
-    mgr.active[p] = True
+def store_end_state(mgr, p, n, y):
+    """Rows p (k,)'s end state y (k, NY) into the manager's per-pair arrays: the approach x [m], its
+    rate along the normal n (k, 3) [m/s], the tangential spring s and the contact point's velocity vc,
+    the works W_el, W_visc, Q_t, W_t [J] and the phase (1 while approaching). Shared by the resting
+    island step and islands.write_back."""
     mgr.x[p] = y[:, _X]
     mgr.xdot[p] = -_dot(y[:, _V], n)
     mgr.s[p] = y[:, _S]
     mgr.vc[p] = y[:, _VC]
     mgr.W_el[p], mgr.W_visc[p], mgr.Q_t[p], mgr.W_t[p] = y[:, _WEL], y[:, _WVI], y[:, _Q], y[:, _WT]
     mgr.phase[p] = np.where(mgr.xdot[p] < 0, 1, 0)
+
+
+def _write_back(mgr, p, n, y, groups, t0):
+    """The rows' end state into the manager (as NumpyPath._step_group for settled rows: no timing
+    correction, the force is held over the whole step); returns the impulses P - J_previous (k, 3)."""
+    dt = mgr.dt
+    mgr.active[p] = True
+    store_end_state(mgr, p, n, y)
     for law, idx, _o in groups:
         mgr.outside[p[idx]] |= law.outside(np.maximum(y[idx, _X], 0.0))
     mgr.settled[p] = True
