@@ -34,25 +34,7 @@ def test_robot_model_runs_and_gains_no_energy_without_torques(name, torque_steps
     limits taking 12.2 J, the humanoid 392 -> 338 J, 10.1 J). Each at its own
     time step; the ant's RK4 (whose stage forces data does not keep, and
     under which MSF on links is warned) is replaced by Euler."""
-    from engines.mujoco.robots import RestEnergy
-
-    path = os.path.join(pybullet_data.getDataPath(), "mjcf", name)
-    model, data, pairs = load_with_msf_floor(path, ContactPair(preset("natural-rubber"), preset("steel")))
-    if model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
-        model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
-    adapter = MujocoAdapter(model, data, pairs)
-    rng = np.random.default_rng(SEED)
-    lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
-    with installed(adapter):
-        for _ in range(torque_steps):
-            data.ctrl[:] = rng.uniform(lo, hi)
-            mujoco.mj_step(model, data)
-        data.ctrl[:] = 0.0
-        account = RestEnergy(model, data, adapter)
-        start = account.total
-        for _ in range(rest_steps):
-            mujoco.mj_step(model, data)
-            account.update()
+    _, data, adapter, account, start, _ = _at_rest(name, SEED, torque_steps, rest_steps)
     assert adapter.jumps == 0
     assert np.all(np.isfinite(data.qpos)) and np.all(np.isfinite(data.qvel))
     assert adapter.records  # MSF carried the robot: its contacts with the floor began and ended
@@ -60,17 +42,19 @@ def test_robot_model_runs_and_gains_no_energy_without_torques(name, torque_steps
     assert account.total < start and account.absorbed > 0.0  # the limits took energy out
 
 
-def _ant_at_rest(seed: int, torque_steps: int, rest_steps: int):
-    """ant.xml at its own 10 ms (Euler for its RK4), MSF on its floor pairs:
-    ``torque_steps`` of seeded torques (uniform in the actuators' ranges,
-    as benchmarks/robots.py), then ``rest_steps`` with none under
-    RestEnergy's account: (adapter, account, its total at the rest's start,
+def _at_rest(name: str, seed: int, torque_steps: int, rest_steps: int, *, euler: bool = True):
+    """``name`` of pybullet_data/mjcf at its own time step (its RK4 replaced
+    by Euler unless ``euler`` is False), MSF on its floor pairs:
+    ``torque_steps`` of seeded torques (uniform in the actuators' ranges, as
+    benchmarks/robots.py), then ``rest_steps`` with none under RestEnergy's
+    account: (model, data, adapter, account, its total at the rest's start,
     islands flagged before the rest)."""
     from engines.mujoco.robots import RestEnergy
 
-    path = os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml")
+    path = os.path.join(pybullet_data.getDataPath(), "mjcf", name)
     model, data, pairs = load_with_msf_floor(path, ContactPair(preset("natural-rubber"), preset("steel")))
-    model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
+    if euler and model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:
+        model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
     adapter = MujocoAdapter(model, data, pairs)
     rng = np.random.default_rng(seed)
     lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
@@ -86,7 +70,7 @@ def _ant_at_rest(seed: int, torque_steps: int, rest_steps: int):
             mujoco.mj_step(model, data)
             account.update()
     assert adapter.jumps == 0 and np.all(np.isfinite(data.qpos))
-    return adapter, account, start, flagged
+    return model, data, adapter, account, start, flagged
 
 
 def test_the_ant_at_rest_gains_no_energy():
@@ -100,7 +84,7 @@ def test_the_ant_at_rest_gains_no_energy():
     others' forces held in its a_ext a step late, while the legs pass load
     through their joints within the step) rest step 331 of this run rose
     above the bound (measured at ef6700c)."""
-    adapter, account, start, flagged = _ant_at_rest(13, 1000, 340)
+    _, _, adapter, account, start, flagged = _at_rest("ant.xml", 13, 1000, 340)
     assert account.gains == []
     assert len(adapter.manager.island_energy_gains) == flagged
     assert account.total < start
@@ -115,7 +99,7 @@ def test_the_ant_whose_legs_slam_onto_their_limits_gains_no_energy():
     the account rose 0.365 J in rest step 3 (0.068 J allowed). The
     constraint forces are now predicted in their step
     (engines.mujoco._known): no rest step above the bound."""
-    adapter, account, _, _ = _ant_at_rest(1, 1000, 10)
+    _, _, adapter, account, _, _ = _at_rest("ant.xml", 1, 1000, 10)
     assert account.gains == []
 
 
@@ -129,22 +113,7 @@ def test_the_humanoid_resting_on_its_limbs_keeps_the_rk4_island():
     With that step (main 751b2d1) a shin's force went 62 -> 246 N in the
     step after it and the account rose 93 mJ in rest step 139 (5 mJ
     allowed)."""
-    from engines.mujoco.robots import RestEnergy
-
-    path = os.path.join(pybullet_data.getDataPath(), "mjcf", "humanoid.xml")
-    model, data, pairs = load_with_msf_floor(path, ContactPair(preset("natural-rubber"), preset("steel")))
-    adapter = MujocoAdapter(model, data, pairs)
-    rng = np.random.default_rng(SEED)
-    lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
-    with installed(adapter):
-        for _ in range(1000):
-            data.ctrl[:] = rng.uniform(lo, hi)
-            mujoco.mj_step(model, data)
-        data.ctrl[:] = 0.0
-        account = RestEnergy(model, data, adapter)
-        for _ in range(150):
-            mujoco.mj_step(model, data)
-            account.update()
+    _, _, _, account, _, _ = _at_rest("humanoid.xml", SEED, 1000, 150)
     assert account.gains == []
 
 
@@ -335,26 +304,10 @@ def test_the_ant_under_rk4_gains_no_energy_at_rest():
     Measured: 61.3 -> 54.9 J, the limits taking 24.7 J."""
     import warnings
 
-    from engines.mujoco.robots import RestEnergy
-
-    path = os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml")
-    model, data, pairs = load_with_msf_floor(path, ContactPair(preset("natural-rubber"), preset("steel")))
-    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
-    rng = np.random.default_rng(SEED)
-    lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        adapter = MujocoAdapter(model, data, pairs)
-        with installed(adapter):
-            for _ in range(60):
-                data.ctrl[:] = rng.uniform(lo, hi)
-                mujoco.mj_step(model, data)
-            data.ctrl[:] = 0.0
-            account = RestEnergy(model, data, adapter)
-            start = account.total
-            for _ in range(60):
-                mujoco.mj_step(model, data)
-                account.update()
+        model, _, adapter, account, start, _ = _at_rest("ant.xml", SEED, 60, 60, euler=False)
+    assert model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4
     assert adapter.jumps == 0 and adapter.records
     assert account.gains == [] and account.mixed == []
     assert account.total < start and account.absorbed > 0.0
