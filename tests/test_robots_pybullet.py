@@ -428,6 +428,19 @@ def test_a_joint_stopped_at_its_limit_does_not_enter_a_ext_as_an_acceleration(tm
 FOOT_DRIFT_ATOL = 2e-5
 
 
+def _ant_on_its_ankle_limits(c):
+    """The ant loaded in client c, its ankles put on their limits (where its
+    torques leave it), put down on the floor 0.5 mm deep, and its
+    PybulletAdapter: (body id, adapter)."""
+    u, floor, pairs, shapes = _load_ant(c)
+    for j in range(pb.getNumJoints(u, physicsClientId=c)):
+        info = pb.getJointInfo(u, j, physicsClientId=c)
+        if b"ankle" in info[1]:
+            pb.resetJointState(u, j, info[8] if info[8] > 0 else info[9], 0.0, physicsClientId=c)
+    _put_down(c, u, floor, 5e-4)
+    return u, PybulletAdapter(c, pairs, link_shapes=shapes)
+
+
 def test_the_ant_on_its_ankle_limits_rests_with_its_feet_where_the_engine_has_them():
     """The ant put on its ankle limits (where its torques leave it) at its
     10 ms step, no torques, 1.5 s: pybullet's limit holds the ankles
@@ -436,13 +449,7 @@ def test_the_ant_on_its_ankle_limits_rests_with_its_feet_where_the_engine_has_th
     internal approach follows the engine's."""
     c = scenes.new_client(DT["ant.xml"], gravity=9.81)
     try:
-        u, floor, pairs, shapes = _load_ant(c)
-        for j in range(pb.getNumJoints(u, physicsClientId=c)):
-            info = pb.getJointInfo(u, j, physicsClientId=c)
-            if b"ankle" in info[1]:
-                pb.resetJointState(u, j, info[8] if info[8] > 0 else info[9], 0.0, physicsClientId=c)
-        _put_down(c, u, floor, 5e-4)
-        ad = PybulletAdapter(c, pairs, link_shapes=shapes)
+        u, ad = _ant_on_its_ankle_limits(c)
         m = ad.manager
         drift = []
         for k in range(150):
@@ -514,13 +521,7 @@ def test_what_the_twisted_ant_on_its_ankle_limits_gains_at_10_ms_pybullet_adds()
     dt = DT["ant.xml"]
     c = scenes.new_client(dt, gravity=9.81)
     try:
-        u, floor, pairs, shapes = _load_ant(c)
-        for j in range(pb.getNumJoints(u, physicsClientId=c)):
-            info = pb.getJointInfo(u, j, physicsClientId=c)
-            if b"ankle" in info[1]:
-                pb.resetJointState(u, j, info[8] if info[8] > 0 else info[9], 0.0, physicsClientId=c)
-        _put_down(c, u, floor, 5e-4)
-        ad = PybulletAdapter(c, pairs, link_shapes=shapes)
+        u, ad = _ant_on_its_ankle_limits(c)
         ad.step(50)
         _twist(c, u, 5.0)
         ad.placed([u])
