@@ -4,10 +4,10 @@ Cheap: the hash of the comparison's inputs printed in the doc, and one row
 (an SLS at tan delta ~0.3, 1 m/s: exact, msf, kuwabara-kono) recomputed
 and compared with the printed numbers to their printed precision."""
 
-import importlib.util
 from pathlib import Path
 
 import pytest
+from _scripts import load_script
 
 ROOT = Path(__file__).resolve().parents[1]
 DOC = ROOT / "docs" / "exact.md"
@@ -15,10 +15,7 @@ DOC = ROOT / "docs" / "exact.md"
 
 @pytest.fixture(scope="module")
 def mc():
-    spec = importlib.util.spec_from_file_location("make_exact_comparison", ROOT / "scripts" / "make_exact_comparison.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("make_exact_comparison")
 
 
 def _row(text: str, first: str, second: str) -> list[str]:

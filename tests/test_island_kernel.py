@@ -18,10 +18,8 @@ from __future__ import annotations
 
 import contextlib
 import copy
-import importlib.util
 import math
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -30,6 +28,7 @@ import engines._contacts.manager as manager_mod
 from engines._contacts.island_compiled import coupled_rows
 from msf_contact import Body, ContactPair, Curvature, make_law, preset
 from test_multi_contact import Scene, _engine_available
+from _scripts import load_script
 
 #: Both paths do the same arithmetic per row in another order (einsum and
 #: np.add.at against written-out sums; the laws' own numpy methods against
@@ -205,10 +204,7 @@ def test_deep_oblique_island(engine):
 
 
 def _pile_module():
-    spec = importlib.util.spec_from_file_location("pile", Path(__file__).resolve().parents[1] / "scripts" / "pile.py")
-    pile = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(pile)
-    return pile
+    return load_script("pile")
 
 
 #: The closed-form coupling blocks against MuJoCo's Jacobians and mass matrix: the same

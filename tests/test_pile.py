@@ -18,9 +18,7 @@ settle_rate, never past touching), so every contact begins at touching
 from __future__ import annotations
 
 import contextlib
-import importlib.util
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -29,6 +27,7 @@ from engines._contacts.islands import TOUCH_TOL
 from engines._contacts.state import ENERGY_GAIN_RTOL
 from msf_contact import Body, ContactPair, Curvature, make_law, preset
 from test_multi_contact import Scene, _engine_available
+from _scripts import load_script
 
 R, G = 0.01, 9.81
 STEEL, RUBBER = preset("steel"), preset("natural-rubber")
@@ -65,10 +64,7 @@ VELOCITY_ROUNDOFF = 1e-9
 
 
 def _pile_module():
-    spec = importlib.util.spec_from_file_location("pile", Path(__file__).resolve().parents[1] / "scripts" / "pile.py")
-    pile = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(pile)
-    return pile
+    return load_script("pile")
 
 
 @pytest.mark.parametrize("engine", [pytest.param("mujoco", marks=pytest.mark.mujoco),

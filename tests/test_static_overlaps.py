@@ -11,9 +11,7 @@ contact carries the weight of the spheres above it, exactly.
 
 from __future__ import annotations
 
-import importlib.util
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,6 +19,7 @@ import pytest
 from msf_contact import ContactPair, Curvature, column_loads, make_law, preset, static_overlap
 from test_multi_contact import _engine_available
 from test_pile import ENERGY_ROUNDOFF
+from _scripts import load_script
 
 R, G, DT = 0.01, 9.81, 1e-3
 STEEL, RUBBER = preset("steel"), preset("natural-rubber")
@@ -87,10 +86,7 @@ ENGINE_RTOL = 5e-3
 
 
 def _column_module():
-    spec = importlib.util.spec_from_file_location("column", Path(__file__).resolve().parents[1] / "scripts" / "column.py")
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
+    return load_script("column")
 
 
 @pytest.mark.parametrize("column", COLUMNS)
