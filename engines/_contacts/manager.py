@@ -190,7 +190,8 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         #: second order; a link's point moves with its joints and the engine's gap is taken (P,)
         self.own_gap = np.zeros(P, bool)
         #: pairs whose resting island may take one settled step (engines._contacts.resting) when it is
-        #: also own_gap: free bodies; the adapters clear it for links of a chain, which keep the RK4
+        #: also own_gap: free bodies; the MuJoCo adapter clears it for links of a chain (own_gap there; pybullet's
+        #: links are never own_gap), which keep the RK4
         #: island (MuJoCo's humanoid at rest: a settled island step of its limbs, then the RK4 island,
         #: a contact's force 62 -> 246 N in one step and 93 mJ gained, issue 13) (P,)
         self.settle_rigid = np.ones(P, bool)
