@@ -6,8 +6,8 @@ A pair read through Jacobians (a link of a chain, a box face) takes its
 outside acceleration a_ext from the finite difference of its v_rel over the
 last step (:mod:`engines.mujoco.adapter`): it holds the last step's forces.
 A force that changes between steps then reaches the contact's free flight
-one step after it moved the link. Three kinds change that way, and all
-three are known at the hook (``mjcb_passive``, called inside ``mj_passive``
+one step after it moved the link. Four kinds change that way, and all
+four are known at the hook (``mjcb_passive``, called inside ``mj_passive``
 in every ``mj_forward``; MuJoCo 4.0 ``src/engine/engine_forward.c``,
 ``mj_forwardSkip``: ``mj_fwdPosition``, then ``mj_fwdVelocity`` = ...
 ``mj_passive`` (the hook) ``mj_referenceConstraint``, ``mj_rne`` (qfrc_bias),
@@ -17,6 +17,16 @@ then ``mjcb_control``, ``mj_fwdActuation``, ``mj_fwdAcceleration``,
 - the actuators' forces (a policy's new control every step): this step's
   from ``mj_fwdActuation``, called here before MuJoCo calls it (same
   inputs, same result);
+- the joint and tendon springs and gravity compensation (``qfrc_spring``,
+  ``qfrc_gravcomp``: computed by ``mj_passive`` before the hook, so this
+  step's are read there). Only these position-dependent passive forces: the
+  damping and the bias force change with the contacts' own impulses inside
+  the step and would feed back (with the whole ``qfrc_passive`` and
+  ``qfrc_bias`` the RK4 ant chattered at rest, ~1e-4 J every third step).
+  gymnasium's HalfCheetah stands on leg springs of 60-240 N m/rad: held a
+  step late, its feet's contacts predicted less motion than the engine
+  made and its rest account rose in its slow rocking (docs/engines.md,
+  gymnasium's walkers);
 - the user's ``qfrc_applied`` and ``xfrc_applied`` (set before ``mj_step``;
   an ``xfrc_applied`` row acts at its body's centre of mass, ``xipos``, as
   MuJoCo's ``mj_xfrcAccumulate``);
@@ -43,6 +53,16 @@ a_ext use M_eff^-1 (:meth:`KnownForces.solve`) with the rows active in the
 prediction, and the constraint forces compared between steps are those
 without the contacts' own share (their response -J_S^T (A_S + R_S)^-1
 J_S M^-1 Q_contacts, taken out of the prediction and of the last step's).
+
+MuJoCo's Euler step takes the dofs' damping implicitly (:func:`euler_damping`):
+its velocity change is h (M + h B)^-1 M qacc, so every M^-1 here (W, the
+couplings, the impulses' velocity change, the known forces' change) is
+followed by S = (M + h B)^-1 M (:func:`damped_response`). gymnasium's
+HalfCheetah (B = 1.5-6 N m s on its legs, 10 ms): with M^-1 alone each
+impulse was predicted to change its foot's velocity 6-9 % more than the step
+did (tests/test_gymnasium_cheetah.py). Not done: the implicit and
+implicitfast integrators' own M - h dQ/dv, and the free bodies' pairs
+(no KnownForces there: a damped free joint is read with M^-1).
 
 What the last step's a_ext holds of them: under Euler, implicit and
 implicitfast the forces of its one forward pass; under RK4 the tableau's
@@ -73,6 +93,39 @@ import numpy as np
 from engines.mujoco._stepping import RK4_B
 
 _RK4 = int(mujoco.mjtIntegrator.mjINT_RK4)
+_EULER = int(mujoco.mjtIntegrator.mjINT_EULER)
+
+
+def euler_damping(model: mujoco.MjModel) -> np.ndarray | None:
+    """h B [kg m^2/s or kg/s] (nv,), B the dofs' damping, when ``mj_step``
+    integrates it implicitly, else None. MuJoCo's Euler step (its
+    documentation, Computation, "Numerical integration"; ``mj_EulerSkip`` in
+    ``src/engine/engine_forward.c``) takes the damping implicitly when a dof
+    has ``dof_damping`` > 0 and ``mjDSBL_EULERDAMP`` is not set: v' = v + h
+    (M + h B)^-1 M qacc, qacc = M^-1 f with the damping force -B v in f. A
+    generalised force Q then changes v' by h (M + h B)^-1 Q, not h M^-1 Q
+    (measured against ``mj_step`` on gymnasium's HalfCheetah-v5, whose leg
+    dofs have B = 1.5-6 N m s against M_dd ~ 0.1-0.5 kg m^2 at h = 10 ms:
+    equal to 1e-16, 6 % off with M^-1; tests/test_gymnasium_cheetah.py)."""
+    if int(model.opt.integrator) != _EULER or model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP:
+        return None
+    B = np.asarray(model.dof_damping, dtype=float)
+    if not np.any(B > 0.0):
+        return None
+    return float(model.opt.timestep) * B
+
+
+def damped_response(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray | None:
+    """S = (M + h B)^-1 M (nv, nv) at ``data``'s mass matrix (``mj_makeM``
+    done), the map from MuJoCo's acceleration to Euler's velocity change per
+    h (:func:`euler_damping`); None when the step takes no damping
+    implicitly (S = I)."""
+    hB = euler_damping(model)
+    if hB is None:
+        return None
+    M = np.zeros((model.nv, model.nv))
+    mujoco.mj_fullM(model, data, M)
+    return np.linalg.solve(M + np.diag(hB), M)
 _QUADRATIC = int(mujoco.mjtConstraintState.mjCNSTRSTATE_QUADRATIC)
 
 
@@ -90,6 +143,9 @@ class KnownForces:
         #: (4, nv) (stage j read at the call after it; stage 3 / Euler's only stage at the next step)
         self.constraint = np.zeros((4, nv))
         self.actuator = np.zeros((4, nv))
+        #: the position-dependent passive forces (joint and tendon springs, gravity compensation) of each
+        #: stage [N or N m] (4, nv), read at the stage's own hook call (mj_passive has computed them)
+        self.passive = np.zeros((4, nv))
         #: the efc_type values of each stage's constraint rows (RestEnergy's account)
         self.row_types: list[frozenset] = [frozenset()] * 4
         self._types = frozenset()  # the current call's rows
@@ -102,6 +158,7 @@ class KnownForces:
         # (A_S + R_S)^-1 (r, r); r = 0: none
         self._Js = self._G = np.zeros((0, nv))
         self._Ainv = np.zeros((0, 0))
+        self._S: np.ndarray | None = None  # Euler's implicit damping (damped_response) at this step, or None
 
     def read(self, kind: str, stage: int) -> None:
         """At every hook call: the previous stage's actuator and constraint
@@ -112,15 +169,18 @@ class KnownForces:
         rk4 = int(self.model.opt.integrator) == _RK4
         if kind == "stage":
             self._take(stage - 1)
+            self._springs(stage)
         elif kind == "step":
             self._take(3 if rk4 else 0)
             if rk4:
-                Q = sum(b * (self.constraint[i] + self.actuator[i]) for i, b in enumerate(RK4_B))
+                Q = sum(b * (self.constraint[i] + self.actuator[i] + self.passive[i]) for i, b in enumerate(RK4_B))
             else:
-                Q = self.constraint[0] + self.actuator[0]
+                Q = self.constraint[0] + self.actuator[0] + self.passive[0]
             self._last = Q + self._user - self._reaction
+            self._springs(0)
         elif kind in ("first", "jump"):
             self._last = None
+            self._springs(0)
         n = int(d.nefc)
         self._types = frozenset(np.unique(d.efc_type[:n]).tolist()) if n else frozenset()
 
@@ -129,6 +189,10 @@ class KnownForces:
         self.constraint[j] = d.qfrc_constraint
         self.actuator[j] = d.qfrc_actuator
         self.row_types[j] = self._types
+
+    def _springs(self, j: int) -> None:
+        d = self.data
+        np.add(d.qfrc_spring, d.qfrc_gravcomp, out=self.passive[j])
 
     def applied(self, before: np.ndarray) -> None:
         """The managed contacts' generalised force of this step: ``qfrc_passive``
@@ -197,19 +261,22 @@ class KnownForces:
         mujoco.mj_solveM(self.model, self.data, out, rows)
         if self._Js.shape[0]:
             out -= ((out @ self._Js.T) @ self._Ainv) @ self._G
+        if self._S is not None:  # Euler's implicit damping: the velocity change is S times MuJoCo's
+            out[:] = out @ self._S.T
 
     def change(self) -> np.ndarray | None:
-        """M^-1 (Q(now) - Q(last)) [(nv,)]: the generalised acceleration by
+        """S M^-1 (Q(now) - Q(last)) [(nv,)]: the generalised acceleration by
         the known forces' change since the forces the last step's a_ext
         holds (None: the first step, after a jump, or no change). Computes
         this step's actuator forces in ``data`` (mj_fwdActuation) and fixes
         the active constraint rows (:meth:`constraint_now`)."""
         m, d = self.model, self.data
+        self._S = damped_response(m, d)
         user = self.user_now()
         last, self._user = self._last, user
         if m.nu:
             mujoco.mj_fwdActuation(m, d)
-        Q = user + self.constraint_now()
+        Q = user + self.constraint_now() + self.passive[0]
         if last is None:
             return None
         if m.nu:
@@ -217,8 +284,15 @@ class KnownForces:
         Q -= last
         if not np.any(Q):
             return None
-        mujoco.mj_solveM(m, d, self._dq, Q.reshape(1, -1))
+        self.solve_free(self._dq, Q.reshape(1, -1))
         return self._dq[0].copy()
+
+    def solve_free(self, out: np.ndarray, rows: np.ndarray) -> None:
+        """out = rows M^-1, with Euler's implicit damping (:func:`damped_response`) but
+        without the constraint rows' response (the known forces' own change is solved so)."""
+        mujoco.mj_solveM(self.model, self.data, out, rows)
+        if self._S is not None:
+            out[:] = out @ self._S.T
 
     def rk4_step(self) -> tuple[np.ndarray, list]:
         """After an RK4 ``mj_step``: the constraint forces of its four stages
