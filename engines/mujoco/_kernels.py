@@ -286,20 +286,34 @@ def free_forces(gi, group_of, pair, force, hit, keep, only_unheld, p1, p2, xipos
     [m]): first every body 1 (+F), then every free body 2 (-F), each at its
     contact point, the lever arm r from its centre of mass in world axes
     (held fixed over the step)."""
-    n = pair.shape[0]
+    m1, m2 = _free_counts(gi, group_of, pair, hit, keep, only_unheld)
+    bodies = np.empty((m1 + m2, 3), np.int64)
+    F = np.empty((m1 + m2, 3))
+    arm = np.empty((m1 + m2, 3))
+    free_forces_into(gi, group_of, pair, force, hit, keep, only_unheld, p1, p2, xipos, m1, bodies, F, arm)
+    return bodies, F, arm
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def _free_counts(gi, group_of, pair, hit, keep, only_unheld):
+    """(bodies 1, free bodies 2) that :func:`free_forces` lists."""
     m1 = 0
     m2 = 0
-    for r in range(n):
+    for r in range(pair.shape[0]):
         g = group_of[pair[r]]
         if g >= 0 and hit[r] and not (only_unheld and keep[r]):
             m1 += 1
             m2 += gi[g, I_FREE2] != 0
-    bodies = np.empty((m1 + m2, 3), np.int64)
-    F = np.empty((m1 + m2, 3))
-    arm = np.empty((m1 + m2, 3))
+    return m1, m2
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def free_forces_into(gi, group_of, pair, force, hit, keep, only_unheld, p1, p2, xipos, m1, bodies, F, arm):
+    """:func:`free_forces` into the caller's arrays (m1: the bodies 1 of :func:`_free_counts`;
+    each array at least as long as the rows written, nothing allocated); returns the rows written."""
     j1 = 0
     j2 = m1
-    for r in range(n):
+    for r in range(pair.shape[0]):
         g = group_of[pair[r]]
         if g < 0 or not hit[r] or (only_unheld and keep[r]):
             continue
@@ -315,7 +329,7 @@ def free_forces(gi, group_of, pair, force, hit, keep, only_unheld, p1, p2, xipos
             arm[j2, 0], arm[j2, 1] = p2[g, 0] - xipos[b, 0], p2[g, 1] - xipos[b, 1]
             arm[j2, 2] = p2[g, 2] - xipos[b, 2]
             j2 += 1
-    return bodies, F, arm
+    return j2
 
 
 @njit(cache=True, error_model="numpy")
@@ -405,9 +419,20 @@ def after_step(gi, group_of, pair, force, active, settled, t_onset, tau_est, t_n
     n = pair.shape[0]
     hit = np.empty(n, np.bool_)
     keep = np.empty(n, np.bool_)
+    n_hit, n_unheld = held_rows(pair, force, active, settled, t_onset, tau_est, t_next, settle_after, steps_min,
+                                mgr_dt, hit, keep)
+    bodies, F, arm = free_forces(gi, group_of, pair, force, hit, keep, False, p1, p2, xipos)
+    if not n_unheld:
+        held_dv(last_dv, pair, keep, W, force, dt)
+    return hit, keep, n_hit, n_unheld, bodies, F, arm
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def held_rows(pair, force, active, settled, t_onset, tau_est, t_next, settle_after, steps_min, mgr_dt, hit, keep):
+    """:func:`after_step`'s hit and keep (n,) into the caller's arrays; returns (n_hit, n_unheld)."""
     n_hit = 0
     n_kept = 0
-    for r in range(n):
+    for r in range(pair.shape[0]):
         h = force[r, 0] != 0.0 or force[r, 1] != 0.0 or force[r, 2] != 0.0
         p = pair[r]
         kp = h and active[p] and (settled[p] or (t_next - t_onset[p]) > settle_after * tau_est[p]
@@ -416,10 +441,22 @@ def after_step(gi, group_of, pair, force, active, settled, t_onset, tau_est, t_n
         keep[r] = kp
         n_hit += h
         n_kept += kp
-    bodies, F, arm = free_forces(gi, group_of, pair, force, hit, keep, False, p1, p2, xipos)
-    if n_hit == n_kept:
+    return n_hit, n_hit - n_kept
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def after_step_into(gi, group_of, pair, force, active, settled, t_onset, tau_est, t_next, settle_after, steps_min,
+                    mgr_dt, p1, p2, xipos, W, last_dv, dt, hit, keep, bodies, F, arm):
+    """:func:`after_step` into the caller's arrays (hit, keep (n,); bodies, F, arm at least
+    2 n rows: nothing allocated); returns (n_hit, n_unheld, m), m the rows of bodies, F, arm
+    written."""
+    n_hit, n_unheld = held_rows(pair, force, active, settled, t_onset, tau_est, t_next, settle_after, steps_min,
+                                mgr_dt, hit, keep)
+    m1, _ = _free_counts(gi, group_of, pair, hit, keep, False)
+    m = free_forces_into(gi, group_of, pair, force, hit, keep, False, p1, p2, xipos, m1, bodies, F, arm)
+    if not n_unheld:
         held_dv(last_dv, pair, keep, W, force, dt)
-    return hit, keep, n_hit, n_hit - n_kept, bodies, F, arm
+    return n_hit, n_unheld, m
 
 
 @njit(cache=True, error_model="numpy")

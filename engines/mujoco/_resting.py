@@ -85,7 +85,9 @@ def _args(ad, factor: float) -> tuple:
         np.empty((k, 2, 3)), np.empty(k), np.empty(k, np.bool_), np.empty(k, np.bool_), np.empty(k, np.int8),
         mgr.turned, mgr._fl, ints, *mgr._scr_settled,
         mgr.vc, mgr.phase, mgr.outside, mgr.couple, np.empty((k, 3)),
-        np.zeros(P, np.bool_), mgr.t_onset, SETTLE_AFTER_DURATIONS, STEPS_PER_CONTACT_MIN)
+        np.zeros(P, np.bool_), mgr.t_onset, SETTLE_AFTER_DURATIONS, STEPS_PER_CONTACT_MIN,
+        np.empty(k, np.bool_), np.empty(k, np.bool_), np.empty((2 * k, 3), np.int64), np.empty((2 * k, 3)),
+        np.empty((2 * k, 3)))
     ad._rest_args = (mgr._kcodes, mgr._kLC, args, ints)
     return args, ints
 
@@ -100,12 +102,16 @@ def step(ad, factor: float) -> tuple[bool, bool, int]:
     d, mgr = ad.data, ad.manager
     t0 = float(d.time)
     args, ints = _args(ad, factor)
-    code, n, bad, force, point, pair, hit, keep, n_hit, n_unheld, *todo = resting_step(
-        t0, mgr.dt, mgr.settle_rate, mgr.timing_correction, d.qfrc_passive, *args)
+    k = ad._gi.shape[0]
+    # the step's ContactForces arrays, new every step (the manager's are; a caller may keep them)
+    force, point, pair = np.empty((k, 3)), np.empty((k, 3)), np.empty(k, np.int64)
+    code, n, bad, n_hit, n_unheld, m = resting_step(
+        t0, mgr.dt, mgr.settle_rate, mgr.timing_correction, d.qfrc_passive, force, point, pair, *args)
     if code == BAD_DETECTION:
         ad._detection_failed(bad)
     if code != RESTING:
         return False, False, n
+    force, point, pair = force[:n], point[:n], pair[:n]
     # what the general path leaves on the adapter and the manager (_compute_rest, ContactManager.step);
     # no link pairs (eligible): _check_deep_onsets has nothing to do. The
     # kinematics of the last resting step are views of the same buffers: kept when n is the same
@@ -123,11 +129,16 @@ def step(ad, factor: float) -> tuple[bool, bool, int]:
     ad._last_kin = kin
     ad._apply = []
     ad._apply_couple = None
-    ad._apply_fast = tuple(todo) if n_hit and todo[0].shape[0] else None
+    # after_step's outputs, in the kernel's buffers (the last arguments) until the next resting step
+    todo = ad._rest_todo
+    if todo is None or todo[0].shape[0] != m or todo[0].base is not args[-3]:
+        todo = ad._rest_todo = (args[-3][:m], args[-2][:m], args[-1][:m])
+    ad._apply_fast = todo if n_hit and m else None
     if not n:
         ad.last_forces = None
     if n_hit and n_unheld:  # not applied: the general path's bookkeeping, then the hook applies them
         fk = ad._fk_bufs
-        ad._after_forces(kin, True, fk[9], fk[10], {}, [], None, pair, force, hit, keep, n_hit, n_unheld, todo)
+        ad._after_forces(kin, True, fk[9], fk[10], {}, [], None, pair, force, args[-5][:n], args[-4][:n], n_hit,
+                         n_unheld, todo)
         return True, False, n
     return True, bool(n_hit), n

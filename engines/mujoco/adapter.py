@@ -641,6 +641,7 @@ class MujocoAdapter(EngineAdapter):
         self._rest_args = None  # its arguments (engines.mujoco._resting._args)
         self._all_msf = True  # every pair on MSF (set_mode)
         self._rest_kin = None  # the kinematics the last resting step made (engines.mujoco._resting.step)
+        self._rest_todo = None  # the forces it left to apply, views of its buffers (_resting.step)
         self.manager.settle_rigid[:] = ~self._link_pairs  # links keep the RK4 island at rest (resting.py)
         self._any_link = bool(self._link_pairs.any())  # _check_deep_onsets has nothing to look at without one
         # the adapter's own conditions for the resting step in one call (engines.mujoco._resting.eligible)
