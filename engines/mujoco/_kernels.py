@@ -100,7 +100,7 @@ def _inverse_inertia(W, k, X, b, iI0, iI1, iI2, r0, r1, r2, inv_m, add):
         W[k, 2, 2] = inv_m - B22
 
 
-@njit(cache=True, error_model="numpy")
+@njit(cache=True, error_model="numpy", _nrt=False)
 def free_kinematics_into(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, ximat, required,
                          last_v, last_dv, have_last, dt, factor, coincident_rtol, push, last_r, last_gap,
                          hold, hold_n, hold_x, pair, x, nrm, point, v_rel, v_com, W, W_com, a_ext, p1, p2, scratch):
@@ -126,6 +126,10 @@ def free_kinematics_into(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos,
     group order in their first n rows; p1, p2 (k, 3): every pair's contact
     points on body 1 and body 2; scratch (k, 4). Returns (err, n); err !=
     ERR_NONE: a state the numpy detection refuses (nothing updated).
+
+    Compiled without numba's reference counting (as engines._kernel): it
+    allocates nothing, and a call from Python then unboxes its arrays without
+    a reference-counted wrapper each.
     """
     k = gi.shape[0]
     xs = scratch[:, 0]
