@@ -50,13 +50,15 @@ def drive(client: int, uid: int, path: str):
 
 
 def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *, seed: int = SEED,
-              tell: bool = True) -> dict:
+              tell: bool = True, limit_trial: bool | None = None) -> dict:
     """One variant: ``steps`` steps of torques seeded with ``seed`` then
     ``rest_steps`` (default ``steps``) without; the record's fields (module
     docstring) and the adapter (None for the built-in contact). tell: with
     MSF, set the torques through ``PybulletAdapter.set_joint_torques`` (the
     contacts see them in their step); False: through pybullet's own call
-    (seen a step late)."""
+    (seen a step late). limit_trial: ``PybulletAdapter(limit_trial=)`` (the
+    joints a limit holds found by a trial step; default: with the torques
+    told, which it needs)."""
     import pybullet as pb
     import pybullet_data
 
@@ -74,7 +76,8 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *
                                                                                      preset("steel")))
         uid = robots[0]
         joints, bound = drive(c, uid, path)
-        adapter = PybulletAdapter(c, pairs, link_shapes=shapes) if msf else None
+        trial = tell if limit_trial is None else limit_trial
+        adapter = PybulletAdapter(c, pairs, link_shapes=shapes, limit_trial=trial) if msf else None
         step = adapter.step if msf else (lambda: pb.stepSimulation(physicsClientId=c))
         rng = np.random.default_rng(seed)
         t = time.perf_counter()

@@ -5,6 +5,10 @@ docs/engines.md quotes (issue 13):
     .venv/bin/python scripts/pybullet_robots.py ant          # ant.xml resting on its feet, 10, 1 and 0.2 ms
     .venv/bin/python scripts/pybullet_robots.py twist        # ant.xml on its ankle limits, twisted, 10, 5, 2.5 ms
     .venv/bin/python scripts/pybullet_robots.py seeds        # the robots_pybullet benchmark's ant, seeds 13, 1, 2, 3
+    .venv/bin/python scripts/pybullet_robots.py landing      # ant.xml put down on its ankle limits, 0.3 s at 10 ms
+
+``--no-trial`` makes the adapters without ``limit_trial`` (a joint within
+JOINT_LIMIT_TOL of a limit taken as held, as before the trial step).
 
 Each run puts the body on a steel floor (natural rubber, gravity 9.81
 m/s^2), no torques, and prints the mechanical energy plus the elastic
@@ -32,6 +36,8 @@ from engines.pybullet.robots import RestEnergy, load_mjcf_with_msf_floor, mechan
 from msf_contact import ContactPair, Curvature, make_law, preset
 
 PAIR = ContactPair(preset("natural-rubber"), preset("steel"))
+#: PybulletAdapter(limit_trial=) of the robots' adapters (--no-trial: False)
+TRIAL = True
 
 
 def watch(c, ad, uids, seconds, dt) -> str:
@@ -83,8 +89,49 @@ def ant(dt: float, seconds: float) -> str:
         gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
         pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
         pb.resetBasePositionAndOrientation(u, [pos[0], pos[1], pos[2] - gap + 5e-4], orn, physicsClientId=c)
-        ad = PybulletAdapter(c, pairs, link_shapes=shapes)
+        ad = PybulletAdapter(c, pairs, link_shapes=shapes, limit_trial=TRIAL)
         return f"ant at rest, dt {dt:g} s, {seconds:g} s: " + watch(c, ad, robots, seconds, dt)
+    finally:
+        pb.disconnect(c)
+
+
+def _on_ankle_limits(c):
+    """ant.xml in client c with its ankles on their limits, put down 0.5 mm
+    above the floor, and its adapter: (robots, adapter)."""
+    robots, floor, pairs, shapes = load_mjcf_with_msf_floor(
+        c, os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml"), PAIR)
+    u = robots[0]
+    for j in range(pb.getNumJoints(u, physicsClientId=c)):
+        info = pb.getJointInfo(u, j, physicsClientId=c)
+        if b"ankle" in info[1]:
+            pb.resetJointState(u, j, info[8] if info[8] > 0 else info[9], 0.0, physicsClientId=c)
+    gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
+    pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
+    pb.resetBasePositionAndOrientation(u, [pos[0], pos[1], pos[2] - gap + 5e-4], orn, physicsClientId=c)
+    return robots, PybulletAdapter(c, pairs, link_shapes=shapes, limit_trial=TRIAL)
+
+
+def _account(acc, E, C) -> str:
+    E, C = np.array(E), np.array(C)
+    return (f"E + stored {E[0]:.6g} -> {E[-1]:.6g} J, largest rise above its running minimum "
+            f"{np.max(E - np.minimum.accumulate(E)):.3g} J; pybullet added {acc.engine_added:.3g} J beyond the MSF "
+            f"loads' work; the contacts' own balance rose {np.max(C - np.minimum.accumulate(C)):.3g} J above its "
+            f"running minimum ({len(acc.contact_gains)} steps above RestEnergy's bound)")
+
+
+def landing(dt: float, seconds: float) -> str:
+    """ant.xml put down on its ankle limits 0.5 mm above the floor, no torques
+    (tests/test_robots_pybullet.py takes 0.3 s at 10 ms)."""
+    c = scenes.new_client(dt, gravity=9.81)
+    try:
+        robots, ad = _on_ankle_limits(c)
+        acc = RestEnergy(ad, robots)
+        E, C = [acc.total], [acc.contacts]
+        for _ in range(int(round(seconds / dt))):
+            ad.step()
+            E.append(acc.update())
+            C.append(acc.contacts)
+        return f"ant landing on its ankle limits, dt {dt:g} s, {seconds:g} s: " + _account(acc, E, C)
     finally:
         pb.disconnect(c)
 
@@ -96,17 +143,8 @@ def twist(dt: float, seconds: float, wz: float = 5.0) -> str:
     (tests/test_robots_pybullet.py takes the first second at 10 ms)."""
     c = scenes.new_client(dt, gravity=9.81)
     try:
-        robots, floor, pairs, shapes = load_mjcf_with_msf_floor(
-            c, os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml"), PAIR)
+        robots, ad = _on_ankle_limits(c)
         u = robots[0]
-        for j in range(pb.getNumJoints(u, physicsClientId=c)):
-            info = pb.getJointInfo(u, j, physicsClientId=c)
-            if b"ankle" in info[1]:
-                pb.resetJointState(u, j, info[8] if info[8] > 0 else info[9], 0.0, physicsClientId=c)
-        gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
-        pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
-        pb.resetBasePositionAndOrientation(u, [pos[0], pos[1], pos[2] - gap + 5e-4], orn, physicsClientId=c)
-        ad = PybulletAdapter(c, pairs, link_shapes=shapes)
         ad.step(int(round(0.5 / dt)))
         pb.resetBaseVelocity(u, [0, 0, 0], [0, 0, wz], physicsClientId=c)
         for j in range(pb.getNumJoints(u, physicsClientId=c)):
@@ -120,11 +158,7 @@ def twist(dt: float, seconds: float, wz: float = 5.0) -> str:
             ad.step()
             E.append(acc.update())
             C.append(acc.contacts)
-        E, C = np.array(E), np.array(C)
-        return (f"ant twisted on its ankle limits, dt {dt:g} s, {seconds:g} s: E + stored {E[0]:.6g} -> {E[-1]:.6g} J, "
-                f"largest rise above its running minimum {np.max(E - np.minimum.accumulate(E)):.3g} J; pybullet added "
-                f"{acc.engine_added:.3g} J beyond the MSF loads' work; the contacts' own balance rose "
-                f"{np.max(C - np.minimum.accumulate(C)):.3g} J above its running minimum")
+        return f"ant twisted on its ankle limits, dt {dt:g} s, {seconds:g} s: " + _account(acc, E, C)
     finally:
         pb.disconnect(c)
 
@@ -140,25 +174,32 @@ def seeds(tell: bool) -> list[str]:
 
     out = []
     for seed in (13, 1, 2, 3):
-        r = run_model("ant.xml", 1000, True, seed=seed, tell=tell)
-        out.append(f"ant, seed {seed}, torques {'told' if tell else 'late'}: rest {r['rest_energy_J'][0]:.1f} -> "
-                   f"{r['rest_energy_J'][1]:.1f} J, rise above the running minimum {r['rest_rise_J']:.3g} J, pybullet "
-                   f"added {r['rest_engine_added_J']:.3g} J, the contacts' own balance rose {r['rest_contacts_rise_J']:.3g} J")
+        r = run_model("ant.xml", 1000, True, seed=seed, tell=tell, limit_trial=TRIAL and tell)
+        out.append(f"ant, seed {seed}, torques {'told' if tell else 'late'}, limit trial {TRIAL and tell}: rest "
+                   f"{r['rest_energy_J'][0]:.1f} -> {r['rest_energy_J'][1]:.1f} J, rise above the running minimum "
+                   f"{r['rest_rise_J']:.3g} J, pybullet added {r['rest_engine_added_J']:.3g} J, the contacts' own "
+                   f"balance rose {r['rest_contacts_rise_J']:.3g} J ({r['rest_contact_gain_steps']} steps above "
+                   f"RestEnergy's bound; {r['rest_gain_steps']} of the account)")
     return out
 
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("case", choices=("dumbbell", "ant", "twist", "seeds"))
+    ap.add_argument("case", choices=("dumbbell", "ant", "twist", "seeds", "landing"))
+    ap.add_argument("--no-trial", action="store_true", help="adapters without limit_trial")
+    ap.add_argument("--late", action="store_true", help="seeds: also with the torques set through pybullet's call")
     args = ap.parse_args()
+    TRIAL = not args.no_trial
     if args.case == "dumbbell":
         for shape in ("sphere", "capsule"):
             for dt in (1e-3, 2e-4):
                 print(dumbbell(shape, dt, 0.3))
         print(dumbbell("capsule", 1e-3, 1.0))
     elif args.case == "seeds":
-        for tell in (True, False):
+        for tell in (True, False) if args.late else (True,):
             print("\n".join(seeds(tell)))
+    elif args.case == "landing":
+        print(landing(1e-2, 0.3))
     elif args.case == "twist":
         for dt in (1e-2, 5e-3, 2.5e-3):
             print(twist(dt, 2.0))

@@ -135,6 +135,13 @@ SAME_VERTEX = 1e-6
 #: beyond its limit; 1e-3 rad is far below a joint's travel in one step.
 JOINT_LIMIT_TOL = 1e-3
 
+#: A joint's end speed in the trial step (PybulletAdapter._limit_trial)
+#: within this of one of its limit rows' bounds was held by that limit
+#: [rad/s or m/s]: measured on pybullet_data's ant under random torques at 10
+#: ms, held joints end 0-2.5e-5 rad/s from the bound (pybullet's iterative
+#: solver), free ones >= 0.1 rad/s from both.
+ENGAGED_ATOL = 1e-3
+
 _SHAPE_NAMES = {pb.GEOM_SPHERE: "sphere", pb.GEOM_BOX: "box", pb.GEOM_CAPSULE: "capsule",
                 pb.GEOM_CYLINDER: "cylinder", pb.GEOM_PLANE: "plane", pb.GEOM_MESH: "mesh",
                 pb.GEOM_HEIGHTFIELD: "heightfield"}
@@ -221,6 +228,23 @@ class PybulletAdapter(EngineAdapter):
         collision shapes, given where pybullet cannot report them
         (``getCollisionShapeData`` ends the process on a loadMJCF capsule made
         with fromto: engines.pybullet.robots gives them from the MJCF).
+    limit_trial: find which joint limits hold a multibody of the pairs over
+        each step by trying the step (:meth:`_limit_trial`): pybullet's
+        state saved, the last step's MSF loads applied again, one
+        ``stepSimulation``, the joints whose end speed is their limit row's
+        bound taken as held, the state restored. A contact on a link beyond
+        a held joint moves with it locked (W = J M^-1 J^T with those joints
+        held) and the multibody's resting contacts are solved together.
+        Without it a joint within JOINT_LIMIT_TOL of a limit is taken as
+        held, which pybullet's one-sided limit is not when the loads pull it
+        off (the ant landing on its ankle limits: its contacts' own balance
+        rose 2.45 J in two steps; with the trial 0.003 J,
+        tests/test_robots_pybullet.py). Costs one more ``stepSimulation``
+        and a ``saveState`` per step (~1.3 ms on the ant). Set the joint
+        torques through :meth:`set_joint_torques`: a TORQUE_CONTROL torque
+        set with pybullet's own call acts for one ``stepSimulation``, the
+        trial's, and is lost (pybullet cannot report it to be set again), as
+        is a force of ``applyExternalForce`` given before :meth:`step`.
     compiled: do the per-step array work of the fast pairs (detection,
         velocities, a_ext, W, the cross-pair correction, the forces summed
         per body) in the numba kernels of :mod:`engines.pybullet._kernels`
@@ -231,12 +255,20 @@ class PybulletAdapter(EngineAdapter):
     name = "pybullet"
 
     def __init__(self, client: int, pairs: list[PairSpec], compiled: bool = True, *, edge_radii: dict | None = None,
-                 curvature: dict | None = None, link_shapes: dict | None = None, mesh_slots: dict | None = None):
+                 curvature: dict | None = None, link_shapes: dict | None = None, mesh_slots: dict | None = None,
+                 limit_trial: bool = False):
         if not isinstance(client, int) or not pb.isConnected(client):
             raise ValueError(f"client = {client!r} is not a connected pybullet physics client")
         if not isinstance(compiled, bool):
             raise ValueError(f"compiled = {compiled!r} must be True or False")
+        if not isinstance(limit_trial, bool):
+            raise ValueError(f"limit_trial = {limit_trial!r} must be True or False")
         self.client = client
+        #: which joint limits hold a multibody found by a trial step (_limit_trial), not by the joints' positions
+        self.limit_trial = limit_trial
+        self.limit_trials = 0  #: trial steps taken (_limit_trial)
+        self._engaged: dict[int, np.ndarray] = {}  # per multibody: its movable joints a limit held in the trial
+        self._engaged_at = -1  # the step whose trial _engaged is from
         self.compiled = compiled
         if compiled:
             from engines.pybullet import _kernels  # numba: imported only when used
@@ -804,8 +836,9 @@ class PybulletAdapter(EngineAdapter):
         move (measured: a foot of pybullet_data's ant with its ankles beyond
         their limits moved 10-30 % less than J M^-1 J^T said; with its joints
         inside their ranges J M^-1 J^T P dt is the velocity change pybullet
-        gives, tests/test_robots_pybullet.py). An approximation: pybullet's
-        limit is one-sided and pushes a joint beyond it back."""
+        gives, tests/test_robots_pybullet.py). Which joints: :meth:`_held_dofs`
+        (with ``limit_trial`` the ones pybullet's one-sided limit holds in a
+        trial of the step; else the ones at a limit, an approximation)."""
         mb = self._multibody(uid)
         if mb[2] is None:
             Minv = np.linalg.inv(self._mass_matrix(uid))
@@ -921,14 +954,59 @@ class PybulletAdapter(EngineAdapter):
         at a limit the coupled solve takes it as held (_minv), which
         pybullet's one-sided limit is not: the ant resting on its ankle limits
         after its torques rocked by ~80 J in one island, and rose 2.2 J where
-        the settled path rose 0.36 J (benchmarks robots_pybullet)."""
+        the settled path rose 0.36 J (benchmarks robots_pybullet). With
+        ``limit_trial`` the held joints are the ones pybullet holds over the
+        step (:meth:`_limit_trial`) and every multibody's contacts are one
+        island also at rest (the ant landing on its ankle limits: its
+        contacts' own balance 0.003 J above its running minimum, 2.45 J
+        without the trial, scripts/pybullet_robots.py landing)."""
         together = np.ones(len(self.pairs), bool)
         for uid in {int(self._b_uid[j]) for j in self._art_slots}:
+            if self._engaged_at == self._steps:  # the held joints are the ones pybullet holds: solved together
+                continue
             q = self._multibody(uid)[0]
             if self._held_dofs(uid, q).size:
                 side = self._b_art[self._slot] & (self._b_uid[self._slot] == uid)
                 together &= ~(side[:, 0] | side[:, 1])
         self.manager.set_together(together)
+
+    def _limit_trial(self, bodies: _Bodies) -> None:
+        """Which joint limits hold each multibody of the pairs over this step,
+        found by trying it (the class docstring, ``limit_trial``): pybullet's state saved, the last
+        step's MSF loads applied again (the prediction of this step's, as the
+        held forces of a_ext), one ``stepSimulation``, each movable joint's end
+        speed compared with its limit rows' bounds, the state restored and the
+        torques told (:meth:`set_joint_torques`) set again (TORQUE_CONTROL acts
+        for one step: the trial used them). Into ``_engaged`` for :meth:`_held_dofs`."""
+        c = self.client
+        uids = sorted({int(self._b_uid[j]) for j in self._art_slots})
+        for uid in uids:
+            self._multibody(uid)  # this step's joint state, before the trial moves it
+        loads = self._last_loads
+        sid = pb.saveState(physicsClientId=c)
+        try:
+            if loads is not None:
+                self._apply(bodies, loads[0], loads[1], loads[2])
+            pb.stepSimulation(physicsClientId=c)
+            for uid in uids:
+                mb = self._multibody(uid)
+                q0 = np.asarray(mb[0], float)
+                qd1 = np.array([s[1] for s in pb.getJointStates(uid, self._movable[uid], physicsClientId=c)], float)
+                lim = self._limits_of(uid)
+                # pybullet's limit row (btMultiBodyJointLimitConstraint): end speed >= (lo - q)/dt while q > lo
+                # (speculative: it ends on the limit), >= 0 beyond it (no position correction, robots.LIMIT_ERP)
+                b_lo = np.where(q0 > lim[:, 0], (lim[:, 0] - q0) / self._dt, 0.0)
+                b_hi = np.where(q0 < lim[:, 1], (lim[:, 1] - q0) / self._dt, 0.0)
+                self._engaged[uid] = (lim[:, 0] < lim[:, 1]) & ((np.abs(qd1 - b_lo) <= ENGAGED_ATOL)
+                                                               | (np.abs(qd1 - b_hi) <= ENGAGED_ATOL))
+        finally:
+            pb.restoreState(sid, physicsClientId=c)
+            pb.removeState(sid, physicsClientId=c)
+            for uid, tau in self._tau.items():
+                pb.setJointMotorControlArray(uid, self._movable[uid], pb.TORQUE_CONTROL, forces=tau.tolist(),
+                                             physicsClientId=c)
+        self._engaged_at = self._steps
+        self.limit_trials += 1
 
     def _limits_of(self, uid) -> np.ndarray:
         """(lower, upper) limits of the multibody's movable joints (m, 2) [rad or m] (cached)."""
@@ -940,11 +1018,15 @@ class PybulletAdapter(EngineAdapter):
 
     def _held_dofs(self, uid, q) -> np.ndarray:
         """Columns of the mass matrix (a floating base's 6 first) of the movable
-        joints at or beyond a limit of their range (JOINT_LIMIT_TOL)."""
+        joints held by a limit: with ``limit_trial``, those a limit held in
+        this step's trial (:meth:`_limit_trial`); else those at or beyond a
+        limit of their range (JOINT_LIMIT_TOL)."""
+        base = 0 if self._base_fixed(uid) else 6
+        if self._engaged_at == self._steps and uid in self._engaged:
+            return np.flatnonzero(self._engaged[uid]) + base
         lim = self._limits_of(uid)
         q = np.asarray(q, float)
         on = (lim[:, 0] < lim[:, 1]) & ((q <= lim[:, 0] + JOINT_LIMIT_TOL) | (q >= lim[:, 1] - JOINT_LIMIT_TOL))
-        base = 0 if self._base_fixed(uid) else 6
         return np.flatnonzero(on) + base
 
     def _jacobian(self, b, pose, point):
@@ -1037,6 +1119,8 @@ class PybulletAdapter(EngineAdapter):
     def _kinematics(self, bodies: _Bodies, grav, required):
         """Rows of the pairs done one by one (box faces, links, the narrow pairs)."""
         if self._art_slots:
+            if self.limit_trial:
+                self._limit_trial(bodies)
             self._limits_engaged()
             self._rest_together()
         if self._narrow:
