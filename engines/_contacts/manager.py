@@ -151,6 +151,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self.tau_est = z.copy()  #: estimated duration of the normal impact [s]
         self.h = fl[K.F_H]  #: internal step [s]
         self.n_in = z3.copy()  #: normal at onset (P, 3)
+        self.W_in = np.zeros((P, 3, 3))  #: inverse inertia of the contact points at onset [1/kg] (P, 3, 3)
         self.p_in = z3.copy()  #: contact point at the start of the onset step [m] (P, 3)
         self._point = z3.copy()  #: contact points of the current step's rows [m] (P, 3)
         self.u_in = z3.copy()  #: contact-point tangential velocity at onset [m/s] (P, 3)
