@@ -39,7 +39,8 @@ potential at z + stored, and E differs from that by dt q / 2, so a
 settling pile's E moves by up to (dt/2)|dq| a step with no gain; the
 island check allows the same term, engines._contacts.balance); the
 island energy check (island steps flagged, largest gain); onsets found
-already overlapping (records' x_onset > TOUCH_TOL); settling: the fastest
+already overlapping (records' x_onset beyond x_surface_onset, the indentation
+of a surface still recovering from a force-zero end, by more than TOUCH_TOL); settling: the fastest
 sphere at the end, the first step from which every sphere stays slower
 than REST_SPEED, and the end state against statics: the floor's and walls'
 vertical force on the spheres against their weight, and each contact's
@@ -138,7 +139,8 @@ def build_mujoco(n, side, dt, with_centres=False):
     def speeds():
         return np.linalg.norm(data.qvel.reshape(-1, 6)[:, :3], axis=1)
 
-    def centres():
+    def centres():  # xpos after mj_step is the step start's (forward runs before the integration): refresh
+        mujoco.mj_kinematics(model, data)
         return np.array([data.body(f"b{k}").xpos for k in range(n)])
 
     return (ad, ad, speeds, centres) if with_centres else (ad, ad, speeds)
@@ -292,7 +294,10 @@ def run(engine: str, n: int, side: int, steps: int, dt: float, every: int = 0, r
                 if rest_steps and rest_from is not None and k - rest_from >= rest_steps:
                     break
             records += ad.pop_records()
-            x_on = np.array([r.inputs["x_onset"] for r in records] + [mgr.x_onset[p] for p in mgr.active_pairs])
+            # an onset deeper than touching on a surface still recovering from a force-zero end is no deep
+            # onset (engines._contacts.state.RECOVERY_DOC): counted beyond that surface's indentation
+            x_on = np.array([r.inputs["x_onset"] - r.inputs.get("x_surface_onset", 0.0) for r in records]
+                            + [mgr.x_onset[p] - mgr.x_surface_onset[p] for p in mgr.active_pairs])
             v_end = float(speeds().max())
             forces = ad.contact_forces()
             support = sum(float(r.force[2]) for r in forces if wall_pairs[r.pair])

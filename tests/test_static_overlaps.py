@@ -62,6 +62,45 @@ def test_static_bad_input(call, match):
         call(law, o)
 
 
+# ------------------------------------------------------------ recovery -------
+#: The law's force along the recovering surface against its elastic part [-]: x_r(t) = x_e exp(-k t)
+#: and x_r' = -k x_r put (37) at zero to round-off (the two terms cancel, ~1e-16 relative); 1e-12
+#: leaves the exponential's own round-off a wide margin and catches any other rate (E'/(2 eta'_E): 0.5).
+RECOVERY_RTOL = 1e-12
+
+
+@pytest.mark.parametrize("mode", ["msf", "msf-small", "hertz"])
+def test_surface_recovers_at_the_laws_zero_force(mode):
+    """engines._contacts.state.RECOVERY_DOC: a contact that ends at F_n = 0
+    with x_e > 0 leaves the surface indented, free (F_n = 0), and (37) at
+    zero force gives x_r' = -E' x_r / (3 eta'_E) for every k_p mode
+    (psi and sqrt(x) cancel). Along surface_recovery_rate's exponential
+    (residual_indentation) the law's normal force stays zero against its
+    elastic part, and the rate is omega_x / (3 tg beta) ((46): eta'_E =
+    E''/omega_x)."""
+    from engines._contacts.state import residual_indentation, surface_recovery_rate
+
+    law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(R), kp_mode=mode)
+    o = law.onset(np.array([0.004]), np.array([0.05]))
+    k = float(surface_recovery_rate(o, [0])[0])
+    E, eta, w = float(o["E"][0]), float(o["eta_E"][0]), float(o["omega_x"][0])
+    np.testing.assert_allclose(k, w / (3.0 * (eta * w / E)), rtol=1e-12)  # omega_x / (3 tg beta)
+    x_e, t_e = 3e-5, 0.25
+    t = t_e + np.linspace(0.0, 5.0 / k, 11)
+    x_r = residual_indentation(np.full(t.size, x_e), np.full(t.size, k), np.full(t.size, t_e), t)
+    oo = {key: np.repeat(val, t.size) for key, val in o.items()}
+    F = law.normal_force(x_r, -k * x_r, oo)
+    F_el = law.normal_force(x_r, np.zeros(t.size), oo)
+    assert np.all(F_el > 0) and np.all(np.abs(F) <= RECOVERY_RTOL * F_el), F / F_el
+    np.testing.assert_allclose(x_r[-1], x_e * np.exp(-5.0), rtol=1e-12)
+    # before the end: nothing recovered; no residual: none
+    assert residual_indentation([x_e], [k], [t_e], t_e - 1.0)[0] == x_e
+    assert residual_indentation([0.0], [k], [t_e], t_e + 1e-3)[0] == 0.0
+    # a law without a Kelvin-Voigt element of that form keeps no residual
+    hertz = make_law("hertz", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(R))
+    assert surface_recovery_rate(hertz.onset(np.array([0.004]), np.array([0.05])), [0])[0] == 0.0
+
+
 # ------------------------------------------------------------ columns --------
 #: Columns of spheres (R = 10 mm), bottom first, placed touching each other and the plate at rest.
 #: "rs": a steel ball on a rubber ball: on main f9780ae it never came to rest (5-10 mm/s after 3 s,

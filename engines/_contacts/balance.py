@@ -22,7 +22,9 @@ integrates
 
 and dW_el = dE_el along the step's continuous x, so E + S changes by
 -(dW_visc + dQ_t) <= 0: viscous and slip losses only (a contact that ends
-at force zero takes its elastic energy with it: a loss). A contact that
+at force zero leaves its elastic energy in the surface, which recovers and
+dissipates it, state.RECOVERY_DOC: E_el(x_r) is counted while it falls, a
+loss, and a contact resuming on that surface takes it back). A contact that
 ends keeps its W_t - Q_t in S (``ContactManager.W_tq_finished``, summed over
 the pair's finished contacts): MSF's tangential spring F_t = -k(x) s - b s'
 has a stiffness that grows with the overlap, so it stores k' x' |s|^2 / 2
@@ -99,19 +101,25 @@ class IslandBalance:
 
     @staticmethod
     def stored_rows(mgr, pp) -> np.ndarray:
-        """S of each row of pp (k,) [J] (:meth:`stored` summed per row: 0 for a row not in contact)."""
+        """S of each row of pp (k,) [J] (:meth:`stored` summed per row: for a row not in contact,
+        the elastic energy E_el(x_r) its surface still holds while it recovers from a force-zero end,
+        state.RECOVERY_DOC, else 0)."""
         pp = np.asarray(pp)
         out = np.zeros(pp.size)
         on = np.flatnonzero(mgr.active[pp])
-        if on.size == 0:
+        x_r = mgr.residual_rows(pp)
+        rec = np.flatnonzero(x_r > 0.0)  # a surface still recovering from a force-zero end: its E_el(x_r)
+        if on.size == 0 and rec.size == 0:
             return out
         q = pp[on]
         out[on] = mgr.W_t[q] - mgr.Q_t[q]
-        gid = mgr._group_of[q]
+        rows = np.concatenate([on, rec])
+        xe = np.concatenate([np.maximum(mgr.x[q], 0.0), x_r[rec]])
+        gid = mgr._group_of[pp[rows]]
         for g in np.unique(gid):
             sel = np.flatnonzero(gid == g)
-            o = {key: arr[mgr._pos[q[sel]]] for key, arr in mgr._onset[g].items()}
-            out[on[sel]] += elastic_energy(mgr._groups[g], np.maximum(mgr.x[q[sel]], 0.0), o)
+            o = {key: arr[mgr._pos[pp[rows[sel]]]] for key, arr in mgr._onset[g].items()}
+            out[rows[sel]] += elastic_energy(mgr._groups[g], xe[sel], o)
         return out
 
     def open_many(self, mgr, pp, io, keys, ko) -> None:

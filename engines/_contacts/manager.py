@@ -26,6 +26,7 @@ from .islands import TOUCH_TOL, island_lever, islands, step_island
 from .resting import settle_island
 from .state import (
     L_G0, L_ON, L_W01, L_W11, L_XREF, NL, NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES,
+    residual_indentation,
     _cross, _dot, _name,
 )
 
@@ -161,6 +162,13 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         #: approach at onset [m]: 0 for a contact begun at touching; > 0 for one found already
         #: overlapping (its elastic energy up to there was never worked for: engines._contacts.balance)
         self.x_onset = z.copy()
+        #: the recovering surface of the pair's last contact if it ended at force zero with x > 0
+        #: (state.RECOVERY_DOC): its overlap there [m] (0: none), the end time [s], the rate E'/(3 eta'_E) [1/s]
+        self.x_res, self.t_res, self.k_res = z.copy(), z.copy(), z.copy()
+        #: x_r(t0) of the step the pair's current contact began in [m] (0: a restart from touching):
+        #: its onset may lie that deep without storing energy no force worked for (state.RECOVERY_DOC)
+        self.x_surface_onset = z.copy()
+        self._t_now = 0.0  # the time of the current (or last) step start [s]
         self.x_turn = fl[K.F_XTURN]  #: approach at the first maximum compression [m]
         self.tau1 = fl[K.F_TAU1]  #: compression time [s]
         self.F_max = fl[K.F_FMAX]  #: peak normal force [N]
@@ -281,6 +289,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
     def step(self, kin: ContactKinematics) -> ContactForces:
         """Integrate the candidate contacts over one engine step; return the
         step-averaged forces on body 1 at the contact points."""
+        self._t_now = float(kin.t)
         if self._balance is not None:  # the islands of the last step, now that the engine applied it
             self._balance.close(self, float(kin.t) - self.dt)
         self._finish_pending(at_step_start=True)
@@ -365,6 +374,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
                 self.couple[q] += 0.5 * _cross(n[own], PD)
             self.x_J[pair] = L[:, L_XREF]
             out.torque = self.couple[pair] / self.dt
+        self.x_res[pair[self.active[pair]]] = 0.0  # a contact resumed: the surface is its x (state.RECOVERY_DOC)
         self._listed[:] = False
         self._listed[pair] = True
         if self._coupling is not None:  # the forces the adapters hold into the next step's a_ext
@@ -460,9 +470,12 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         difference is not the integrator's (a narrow phase's point beyond its
         margin, a face or point that changed) and the engine's gap is taken.
         A contact that ended at force zero with x > 0 (a viscoelastic surface
-        not yet recovered) restarts from touching, not from the engine's x
-        (the objects scenario's cylinder on its side: its ends, chattering at
-        1 ms, began up to 7 um deep, 0.17 mJ a step; issue 13)."""
+        not yet recovered) restarts from min(g, x_r(t0)), g the kept gap and
+        x_r the surface's recovery since the end (state.RECOVERY_DOC), not
+        from the engine's x (the objects scenario's cylinder on its side: its
+        ends, chattering at 1 ms, began up to 7 um deep, 0.17 mJ a step; issue
+        13) and no longer from touching (the offset g - 0 between the
+        engine's and the internal x was never paid back)."""
         # compiled (engines._kernel.own_gaps: one pass, no (k,) temporaries; the same arithmetic), the
         # two dot products too (engines._kernel.approach_rates: in einsum's order)
         k = pair.shape[0]
@@ -471,7 +484,28 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         out = np.empty_like(x)
         K.own_gaps(pair, x, self.x, self.active, self._listed, self.own_gap, self.xdot, self._xd0, self._an,
                    self._off, xd0_new, an_new, self.dt, self.settle_rate, TOUCH_TOL, out)
+        # the kept overlaps the kernel clamped to touching (out = 0 where x != 0: a kept gap g >= 0) of
+        # pairs whose surface is still recovering start from min(g, x_r(t0)) (state.RECOVERY_DOC; g in
+        # the kernel's arithmetic)
+        off = ~self.active[pair]
+        self.x_surface_onset[pair[off]] = 0.0
+        rec = np.flatnonzero(off & (self.x_res[pair] > 0.0) & (out == 0.0) & (x != 0.0))
+        if rec.size:
+            q = pair[rec]
+            x_r = residual_indentation(self.x_res[q], self.k_res[q], self.t_res[q], self._t_now)
+            xm = self.x[q]
+            out[rec] = np.minimum(xm + self.settle_rate * (x[rec] - xm), x_r)
+            self.x_surface_onset[q] = x_r
         return out
+
+    def residual_rows(self, pp, t: float | None = None) -> np.ndarray:
+        """x_r(t) [m] (k,) of the pairs pp: the recovering surface of each one's last
+        contact (state.RECOVERY_DOC), 0 for a pair in contact or with none; t [s]
+        defaults to the current step's start."""
+        pp = np.asarray(pp)
+        t = self._t_now if t is None else t
+        x_r = residual_indentation(self.x_res[pp], self.k_res[pp], self.t_res[pp], t)
+        return np.where(self.active[pp], 0.0, x_r)
 
     def held(self, pair, t_next: float) -> np.ndarray:
         """Which of the pairs ``pair`` (k,) hold their force into the next step

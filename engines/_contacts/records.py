@@ -19,9 +19,9 @@ from msf_contact.record import ImpactRecord
 
 from .. import _kernel as K
 from .state import (
-    ENERGY_GAIN_RTOL, _Q, _WEL, _WT, _WVI, PENDING_MAX_STEPS, ROTATION_PER_STEP_MAX,
+    ENERGY_GAIN_RTOL, _Q, _WEL, _WT, _WVI, _X, PENDING_MAX_STEPS, ROTATION_PER_STEP_MAX,
     SUBSTEPS_PER_CONTACT, SUBSTEPS_PER_TANGENTIAL, _duration_estimate, _pc, _plain, _Rows, onset_speed_floor,
-    onset_stiffness,
+    onset_stiffness, surface_recovery_rate,
 )
 
 #: Pairs whose leaving the small-strain range (x_max/R, 2R) is warned one by
@@ -225,6 +225,10 @@ class Records:
                     if self.x_at_F[p] > 0 else 0.0)
         W_el, W_vi = yl[_WEL], yl[_WVI]
         self.W_tq_finished[p] += yl[_WT] - yl[_Q]  # engines._contacts.balance: kept past the contact's end
+        # the surface left indented at a force-zero end recovers (state.RECOVERY_DOC)
+        k_rec = float(surface_recovery_rate(self._onset[g], pos)[0]) if ended_by == "force-zero" else 0.0
+        self.x_res[p] = yl[_X] if (k_rec > 0.0 and yl[_X] > 0.0) else 0.0
+        self.t_res[p], self.k_res[p] = t_end, k_rec
         params = self._params.get(g)
         if params is None:
             params = self._params[g] = law.parameters()
@@ -251,6 +255,8 @@ class Records:
                 "v_t_in": lu, "mass_effective": float(self.m_eff[p]), "tangential": self.pairs[p].tangential,
                 "internal_step": float(self.h[p]), "tau_estimate": float(self.tau_est[p]),
                 "x_max_overall": float(self.x_max[p]), "x_onset": float(self.x_onset[p]), "onset": onset,
+                # the recovering surface of the last contact at the onset step's start (state.RECOVERY_DOC)
+                "x_surface_onset": float(self.x_surface_onset[p]),
                 "point": self.p_in[p].tolist(), "normal": self.n_in[p].tolist(),
                 "island": bool(self._island_contact[p]),  # began inside an island (engines._contacts.islands)
             },
@@ -361,6 +367,7 @@ class Records:
         if self._balance is not None:  # a state jump is not an island's work (engines._contacts.balance)
             self._balance.forget(np.flatnonzero(sel))
         self._off[sel] = 0.0
+        self.x_res[sel] = 0.0  # the surfaces' recovery (state.RECOVERY_DOC) was before the jump
         return dropped
 
     def _rotation_note(self, p: int, rec: ImpactRecord) -> str | None:

@@ -89,6 +89,71 @@ toward a smaller overlap only releases stored energy (a loss, counted by
 the island check as any other). What is left: a c > 0 (the engine deeper
 than x) from drift is not followed; its size at rest is measured in
 docs/engines.md (the pile section)."""
+RECOVERY_DOC = """The free surface's recovery after a contact ends at force zero (issue 10).
+
+MSF's normal force is a nonlinear Kelvin-Voigt element (the paper's Figure
+5b): F_n = 2 eta'_E psi x' sqrt(x) + (2/3) E' psi x^(3/2) ((37); (43) for a
+sphere). With the default "force-zero" separation a contact ends in
+restitution where F_n returns to zero while the surfaces still overlap
+(x_e > 0: the softer surface lags behind the receding body, spec section 4,
+Schwager and Poeschel 2008). The indented surface is then free, F_n = 0, and
+the same law says how it recovers:
+
+    x_r' = -E' x_r / (3 eta'_E),   x_r(t) = x_e exp(-(t - t_e) E' / (3 eta'_E))   (37) at F_n = 0
+
+(psi and sqrt(x) cancel: the rate holds for every k_p mode; eta'_E =
+E''/omega_x (46), so the rate is omega_x / (3 tg beta): 500-4,400 1/s for
+natural rubber on steel, R = 10 mm, at the pile's onset speeds; for steel on
+steel ~1e7 1/s, recovered within a microsecond). The body and the
+recovering surface are apart while the body's approach x_b < x_r; they meet
+again at x_b = x_r with the surface still indented, and the new contact
+continues the elastic element from there: its force is continuous in x, not
+restarted from touching. The elastic energy int_0^x_r F_n(x', 0) dx' stays in
+the indented surface and its dashpot dissipates it as x_r falls (a loss).
+
+In the manager. A contact ended by force at x_e > 0 keeps (x_e, t_e, rate)
+per pair (``x_res``, ``t_res``, ``k_res``; _end). Inside a step the free
+flight after such an end takes a closing body at x >= 0 as in contact (the
+surface at the body; engines._contacts.reference._free_flight), so nothing
+is restarted there. Between steps (ContactManager._own_gaps) a pair not in
+contact whose kept gap g is an overlap starts the step from min(g, x_r(t0)):
+the body's own approach while it is behind the recovering surface (x_r(t0)
+>= g: the contact then resumes at the body's overlap, the engine's and the
+internal approach stay equal), the surface's where the surface has
+recovered past the body's kept gap within the step (it met the body inside
+the step: starting there stores no energy the surface did not hold). Before,
+it restarted at touching (x = 0): every such restart put the body's whole
+overlap g between the engine's x and the internal one, which the resting
+relaxation (RELAX_DOC: toward smaller overlaps only) never paid back, and a
+poured pile rested with engine overlaps 11-32 um deeper than the static
+ones (docs/engines.md). The surface's energy E_el(x_r(t)) is counted in the
+stored energy of the island check and the pile's E
+(engines._contacts.balance) until the pair's next contact begins (it then
+holds E_el(x) <= E_el(x_r(t0))). Laws without (E, eta_E) onset constants (not
+a Kelvin-Voigt element in that form) and contacts ended at x <= 0 keep no
+residual: x_r = 0, the restart at touching as before."""
+
+
+def surface_recovery_rate(onset: dict, pos) -> np.ndarray:
+    """E' / (3 eta'_E) [1/s] of RECOVERY_DOC for the onset constants ``onset``
+    (key -> (n,) arrays) at positions ``pos``; 0 (no residual kept) where the
+    law has no "E", "eta_E" constants or eta_E <= 0."""
+    pos = np.atleast_1d(np.asarray(pos))
+    if "E" not in onset or "eta_E" not in onset:
+        return np.zeros(pos.size)
+    E, eta = np.asarray(onset["E"], dtype=float)[pos], np.asarray(onset["eta_E"], dtype=float)[pos]
+    ok = (eta > 0) & np.isfinite(E) & np.isfinite(eta)
+    return np.where(ok, E / (3.0 * np.where(ok, eta, 1.0)), 0.0)
+
+
+def residual_indentation(x_res, k_res, t_res, t) -> np.ndarray:
+    """x_r(t) = x_e exp(-(t - t_e) k) [m] of RECOVERY_DOC (n,): x_res the overlap
+    at the force-zero end [m] (0: none), k_res the rate E'/(3 eta'_E) [1/s],
+    t_res the end time [s], t the time [s] (>= t_res)."""
+    x_res = np.asarray(x_res, dtype=float)
+    return np.where(x_res > 0, x_res * np.exp(-np.asarray(k_res) * np.maximum(t - np.asarray(t_res), 0.0)), 0.0)
+
+
 #: f = |F_t|/F_n is tracked while F_n >= this share of the running peak F_n
 #: (the reference solver uses 1% of the final peak: F_RATIO_FLOOR).
 F_RATIO_FLOOR = 0.01

@@ -60,7 +60,8 @@ def resting_step(t0, dt, settle_rate, timing, qfrc, force, point_c, pair_c,
         hold_pp[q] = False
     for j in range(pp_idx.shape[0]):
         q = pp_idx[j]
-        hold_pp[q] = required[q] and tau_est[q] < dt and (
+        hold_pp[q] = required[q] and tau_est[q] < dt and not (
+            active[q] and (t0 - t_onset[q]) > settle_after * tau_est[q]) and (
             active[q] or Jst[q, 0] != 0.0 or Jst[q, 1] != 0.0 or Jst[q, 2] != 0.0)
     err, n = MK.free_kinematics_into(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, ximat, required,
                                      last_v, last_dv, have_last, dt, factor, coincident_rtol, push, last_r, last_gap,

@@ -1454,13 +1454,20 @@ class MujocoAdapter(EngineAdapter):
         by a whole step's travel meanwhile (two beads passing at 30 m/s: 3 mm in 0.1 ms, 12
         radii), so its line of centres is no normal for them: a contact that straddled a step
         start read it (cor_n 0.979 instead of 0.993), and the correction of a contact inside one
-        step was taken back at its point, with the wrong angular impulse (spin 10 % low)."""
+        step was taken back at its point, with the wrong angular impulse (spin 10 % low).
+        Not a resting contact (older than SETTLE_AFTER_DURATIONS estimated durations at this step's
+        start, the manager's own test): it is no impact inside a step, and held it never read the
+        engine's geometry again: in a pile the spheres shift and roll, the onset normal and the
+        manager's x went stale, and steel pairs carried their static force across a gap of up to
+        68.7 um between the engine's spheres (scripts/pile.py --n 32 --side 4, docs/engines.md)."""
         mgr = self.manager
         if self._pp_idx.size == 0:
             return self._no_hold, mgr.n_in, mgr.x
         q = self._pp_idx
         hold = np.zeros(len(self._pairs), bool)
-        hold[q] = required[q] & (mgr.tau_est[q] < self.timestep) & (mgr.active[q] | np.any(mgr.J[q] != 0.0, axis=1))
+        resting = mgr.active[q] & ((float(self.data.time) - mgr.t_onset[q]) > SETTLE_AFTER_DURATIONS * mgr.tau_est[q])
+        hold[q] = (required[q] & (mgr.tau_est[q] < self.timestep) & ~resting
+                   & (mgr.active[q] | np.any(mgr.J[q] != 0.0, axis=1)))
         return hold, mgr.n_in, mgr.x
 
     def _lever(self, kin: ContactKinematics) -> np.ndarray | None:
