@@ -150,11 +150,12 @@ def test_pile_pour_gains_no_energy(engine):
 #: At rest from step 1175 (MuJoCo) and 1743 (pybullet) on main at this commit; 4,000 steps of margin.
 SETTLE_N, SETTLE_SIDE, SETTLE_STEPS = 2, 1, 4000
 #: The engine's overlaps at rest against the static overlaps of the forces carried, largest over the
-#: contacts [m]. Measured with the surface's recovery (state.RECOVERY_DOC): 4.1 um (MuJoCo) and 7.3 um
+#: contacts [m]. Measured with the surface's recovery (state.RECOVERY_DOC): 7.5 um (MuJoCo) and 9.6 um
 #: (pybullet), on the rubber ball's contact with the steel ball (x_s = 14 um); restarting from touching
-#: it was 19.8 and 11.4 um. What is left is the engine's position lead over the RK4 island's
-#: integration (docs/engines.md, the pile section), not a restart.
-PILE_ENGINE_ATOL = 1e-5
+#: it was 19.8 and 11.4 um (MuJoCo fails this bound, pybullet did not). What is left is the engine's
+#: position lead over the RK4 island's integration, a random walk of ~1 um a step that moves with any
+#: change of the trajectory (docs/engines.md, the pile section), not a restart.
+PILE_ENGINE_ATOL = 1.5e-5
 
 
 @pytest.mark.parametrize("engine", [pytest.param("mujoco", marks=pytest.mark.mujoco),
@@ -176,7 +177,7 @@ def test_small_pile_settles_without_gain(engine):
     (state.RECOVERY_DOC: 19.8 um (MuJoCo) and 11.4 um (pybullet) on the
     rubber ball's contact with the steel one, x_s = 14 um). Not asserted
     (docs/engines.md): the internal overlaps against the static ones (the
-    run stops 50 steps into the rest, 7 % and 5 % off; at 3,000 steps
+    run stops 50 steps into the rest, 3.5 % and 2.5 % off; at 3,000 steps
     1e-13) and the support."""
     _engine_available(engine)
     out = _pile_module().run(engine, SETTLE_N, SETTLE_SIDE, SETTLE_STEPS, 1e-3, rest_steps=50)

@@ -432,6 +432,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             return
         if self.active[p]:
             raise ValueError(f"pair {p} is in contact: its law changes only between contacts")
+        self.x_res[p] = 0.0  # the recovering surface (state.RECOVERY_DOC) was the last contact's point's
         if g not in self._groups:
             self._groups[g] = law
             self._onset[g] = {}
@@ -485,14 +486,14 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         K.own_gaps(pair, x, self.x, self.active, self._listed, self.own_gap, self.xdot, self._xd0, self._an,
                    self._off, xd0_new, an_new, self.dt, self.settle_rate, TOUCH_TOL, out)
         # the kept overlaps the kernel clamped to touching (out = 0 where x != 0: a kept gap g >= 0) of
-        # pairs whose surface is still recovering start from min(g, x_r(t0)) (state.RECOVERY_DOC; g in
-        # the kernel's arithmetic)
+        # pairs whose surface is still recovering start from min(g, x_r(t0), x) (state.RECOVERY_DOC; g in
+        # the kernel's arithmetic; never deeper than the engine's own overlap x)
         off = ~self.active[pair]
         self.x_surface_onset[pair[off]] = 0.0
-        rec = np.flatnonzero(off & (self.x_res[pair] > 0.0) & (out == 0.0) & (x != 0.0))
+        rec = np.flatnonzero(off & (self.x_res[pair] > 0.0) & (out == 0.0) & (x > 0.0))
         if rec.size:
             q = pair[rec]
-            x_r = residual_indentation(self.x_res[q], self.k_res[q], self.t_res[q], self._t_now)
+            x_r = np.minimum(residual_indentation(self.x_res[q], self.k_res[q], self.t_res[q], self._t_now), x[rec])
             xm = self.x[q]
             out[rec] = np.minimum(xm + self.settle_rate * (x[rec] - xm), x_r)
             self.x_surface_onset[q] = x_r
