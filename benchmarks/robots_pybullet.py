@@ -50,7 +50,7 @@ def drive(client: int, uid: int, path: str):
 
 
 def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *, seed: int = SEED,
-              tell: bool = True, limit_trial: bool | None = None) -> dict:
+              tell: bool = True, limit_trial: bool | None = None, law_options: dict | None = None) -> dict:
     """One variant: ``steps`` steps of torques seeded with ``seed`` then
     ``rest_steps`` (default ``steps``) without; the record's fields (module
     docstring) and the adapter (None for the built-in contact). tell: with
@@ -58,7 +58,8 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *
     contacts see them in their step); False: through pybullet's own call
     (seen a step late). limit_trial: ``PybulletAdapter(limit_trial=)`` (the
     joints a limit holds found by a trial step; default: with the torques
-    told, which it needs)."""
+    told, which it needs). law_options: keyword arguments of the feet's law
+    (``make_law``, e.g. ``{"mu": 1.0}`` for a Coulomb cap; default none)."""
     import pybullet as pb
     import pybullet_data
 
@@ -73,7 +74,8 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *
     c = scenes.new_client(dt, gravity=9.81)
     try:
         robots, floor, pairs, shapes = load_mjcf_with_msf_floor(c, path, ContactPair(preset("natural-rubber"),
-                                                                                     preset("steel")))
+                                                                                     preset("steel")),
+                                                                **(law_options or {}))
         uid = robots[0]
         joints, bound = drive(c, uid, path)
         trial = tell if limit_trial is None else limit_trial

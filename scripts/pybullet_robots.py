@@ -8,7 +8,9 @@ docs/engines.md quotes (issue 13):
     .venv/bin/python scripts/pybullet_robots.py landing      # ant.xml put down on its ankle limits, 0.3 s at 10 ms
 
 ``--no-trial`` makes the adapters without ``limit_trial`` (a joint within
-JOINT_LIMIT_TOL of a limit taken as held, as before the trial step).
+JOINT_LIMIT_TOL of a limit taken as held, as before the trial step);
+``seeds --mu 1.0`` gives the feet's law a Coulomb cap |F_t| <= mu F_n (MSF
+has none by default).
 
 Each run puts the body on a steel floor (natural rubber, gravity 9.81
 m/s^2), no torques, and prints the mechanical energy plus the elastic
@@ -163,7 +165,7 @@ def twist(dt: float, seconds: float, wz: float = 5.0) -> str:
         pb.disconnect(c)
 
 
-def seeds(tell: bool) -> list[str]:
+def seeds(tell: bool, mu: float | None = None) -> list[str]:
     """The robots_pybullet benchmark's MSF ant (1,000 steps of torques, 1,000
     at rest) under seeds 13 (the benchmark's), 1, 2 and 3, the torques told
     to the adapter or set through pybullet's own call (seen a step late)."""
@@ -174,8 +176,9 @@ def seeds(tell: bool) -> list[str]:
 
     out = []
     for seed in (13, 1, 2, 3):
-        r = run_model("ant.xml", 1000, True, seed=seed, tell=tell, limit_trial=TRIAL and tell)
-        out.append(f"ant, seed {seed}, torques {'told' if tell else 'late'}, limit trial {TRIAL and tell}: rest "
+        r = run_model("ant.xml", 1000, True, seed=seed, tell=tell, limit_trial=TRIAL and tell,
+                      law_options=None if mu is None else {"mu": mu})
+        out.append(f"ant, seed {seed}, torques {'told' if tell else 'late'}, limit trial {TRIAL and tell}, mu {mu}: rest "
                    f"{r['rest_energy_J'][0]:.1f} -> {r['rest_energy_J'][1]:.1f} J, rise above the running minimum "
                    f"{r['rest_rise_J']:.3g} J, pybullet added {r['rest_engine_added_J']:.3g} J, the contacts' own "
                    f"balance rose {r['rest_contacts_rise_J']:.3g} J ({r['rest_contact_gain_steps']} steps above "
@@ -188,6 +191,7 @@ if __name__ == "__main__":
     ap.add_argument("case", choices=("dumbbell", "ant", "twist", "seeds", "landing"))
     ap.add_argument("--no-trial", action="store_true", help="adapters without limit_trial")
     ap.add_argument("--late", action="store_true", help="seeds: also with the torques set through pybullet's call")
+    ap.add_argument("--mu", type=float, default=None, help="seeds: a Coulomb cap on the feet's tangential force")
     args = ap.parse_args()
     TRIAL = not args.no_trial
     if args.case == "dumbbell":
@@ -197,7 +201,7 @@ if __name__ == "__main__":
         print(dumbbell("capsule", 1e-3, 1.0))
     elif args.case == "seeds":
         for tell in (True, False) if args.late else (True,):
-            print("\n".join(seeds(tell)))
+            print("\n".join(seeds(tell, args.mu)))
     elif args.case == "landing":
         print(landing(1e-2, 0.3))
     elif args.case == "twist":
