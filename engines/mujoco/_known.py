@@ -106,7 +106,7 @@ def euler_damping(model: mujoco.MjModel) -> np.ndarray | None:
     generalised force Q then changes v' by h (M + h B)^-1 Q, not h M^-1 Q
     (measured against ``mj_step`` on gymnasium's HalfCheetah-v5, whose leg
     dofs have B = 1.5-6 N m s against M_dd ~ 0.1-0.5 kg m^2 at h = 10 ms:
-    equal to 1e-16, 6 % off with M^-1; tests/test_gymnasium_cheetah.py)."""
+    equal to 1e-16 in qvel; W with M^-1 6-11 % off, tests/test_gymnasium_cheetah.py)."""
     if int(model.opt.integrator) != _EULER or model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_EULERDAMP:
         return None
     B = np.asarray(model.dof_damping, dtype=float)
