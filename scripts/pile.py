@@ -48,7 +48,9 @@ overlap against the static overlap of the law's elastic force for the
 normal force it carries, and the engine's own overlaps from the sphere
 centres (engine_overlaps) against the same; the wall and CPU time per step
 (the process's, ``time.process_time``: on a shared machine the wall time
-is the load's).
+is the load's); ``settled_share``: the candidate rows a settled step took
+(rows alone and resting islands, engines._contacts.resting) over all the
+candidate rows, summed over the steps.
 """
 
 from __future__ import annotations
@@ -251,6 +253,7 @@ def run(engine: str, n: int, side: int, steps: int, dt: float, every: int = 0, r
     builder = build_mujoco if engine == "mujoco" else build_pybullet
     ad, ctx, speeds, centres = builder(n, side, dt, with_centres=True)
     mgr = ad.manager
+    rows_settled = rows_all = 0  # candidate rows taken by a settled step, candidate rows, summed over the steps
     keys = np.unique(mgr._coupling[0][mgr._coupling[0] >= 0])
     wall_pairs = np.array([j < 0 for _i, j, _law in laws_and_pairs(layout(n, side)[0])])  # sphere-plane pairs
     seq: list[float] = []
@@ -276,6 +279,9 @@ def run(engine: str, n: int, side: int, steps: int, dt: float, every: int = 0, r
                 if masses is None:
                     masses = np.asarray(ad._energy_probe(keys)[3], dtype=float)
                 records += ad.pop_records()
+                info = mgr.last_step_info or {}
+                rows_settled += info.get("settled", 0)
+                rows_all += info.get("rows", 0)
                 v = speeds()
                 if v.max() > EXPLODED:
                     exploded = k
@@ -288,6 +294,7 @@ def run(engine: str, n: int, side: int, steps: int, dt: float, every: int = 0, r
                     rise = float(np.max(np.diff(seq), initial=0.0))
                     print(json.dumps({"step": k, "v_max_m_s": float(v.max()), "E_J": seq[-1], "E_max_step_rise_J": rise,
                                       "island_steps_flagged": len(mgr.island_energy_gains),
+                                      "settled_share": rows_settled / max(rows_all, 1),
                                       "wall_s_per_step": (time.perf_counter() - t0) / len(seq),
                                       "cpu_s_per_step": (time.process_time() - c0) / len(seq)}), file=sys.stderr,
                           flush=True)
@@ -320,6 +327,7 @@ def run(engine: str, n: int, side: int, steps: int, dt: float, every: int = 0, r
                 "v_max_end_m_s": v_end, "at_rest_from_step": rest_from, "exploded_at_step": exploded,
                 "support_over_weight": support / weight, "contacts_end": int(rel.shape[0]),
                 **_static_summary("", rel, weight / n), **_static_summary("engine_", rel_eng, weight / n),
+                "settled_share": rows_settled / max(rows_all, 1),
                 "wall_s_per_step": wall / len(seq), "cpu_s_per_step": cpu / len(seq)})
     return out
 

@@ -722,12 +722,13 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             bk = [np.unique(k[k >= 0]) for k in np.split(keys_all[pp_all], io[1:-1])]
             self._balance.open_many(self, pp_all, io, np.concatenate(bk), np.cumsum([0] + [b.size for b in bk]))
         # resting islands of free bodies (own_gap: the adapters' free spheres and free bodies on fixed
-        # ones; links keep the RK4 island): one settled step of all their rows (engines._contacts.resting),
-        # else RK4 below
+        # ones; links keep the RK4 island): every contact resting, the gaps listed beside them open (they
+        # must stay open over the step: settle_island checks), one settled step of all their rows
+        # (engines._contacts.resting), else RK4 below
         done = np.zeros(io.size - 1, bool)
         if self.settled_path and R.size:
-            rest = np.logical_and.reduceat(self._rest_rows[R] & self.own_gap[pp_all] & self.settle_rigid[pp_all],
-                                           io[:-1])
+            quiet = (self._rest_rows[R] | ~self.active[pp_all]) & self.own_gap[pp_all] & self.settle_rigid[pp_all]
+            rest = np.logical_and.reduceat(quiet, io[:-1]) & np.logical_or.reduceat(self._rest_rows[R], io[:-1])
             for i in np.flatnonzero(rest):
                 r = R[io[i]:io[i + 1]]
                 e = slice(cio[i], cio[i + 1])

@@ -47,6 +47,20 @@ so are islands with a link (the manager takes this path for the pairs
 the adapters mark ``own_gap``: free spheres, free bodies on fixed ones;
 a robot's resting feet stay in issue 13's RK4 island).
 
+The gaps listed beside the resting contacts (islands.push_reach: pairs that
+nearly touch, within the reach of their bodies' speeds over a step or
+TOUCH_TOL) are rows of the island too, and an island with one took RK4 for
+as long as it was listed (two steel spheres resting on a plate 1e-13 m
+apart: ~960 RK4 substeps a 1 ms step in MuJoCo, for ever;
+tests/test_settling.py).
+They join the step with no force (phi = 0): their end velocities follow
+from the others' forces through the coupling blocks, and the step holds
+only if every gap stays open at its end, x + dt x'+ < 0 (the engine moves
+the bodies by dt v_end, so a gap open at the end was open throughout); a
+gap that would close is an impact, and the island goes to RK4, which finds
+its onset (the struck resting ball, tests/test_settling.py). Their end gap
+is kept as the manager's own (ContactManager._own_gaps).
+
 Numpy only, for both paths of the manager (there is no compiled copy to
 keep in step: ContactManager(compiled=False) and the compiled manager run
 this same function).
@@ -64,20 +78,25 @@ from .state import (
 )
 
 
-def _row_forces(groups, x_e, xd_e, s_e, zt, delta, dt):
-    """The law's forces at the end state, group by group: F_n (k,), F_n at x_e + dt delta with rate
-    xd_e + delta (k,) (the forward difference of the Jacobian), F_t (k, 2), k_t, b_t (k, 2)."""
-    k = x_e.size
-    Fn, Fd = np.empty(k), np.empty(k)
-    Ft, kt, bt = np.empty((k, 2)), np.empty((k, 2)), np.empty((k, 2))
+def _row_forces(groups, on, x_e, xd_e, s_e, zt, delta, dt):
+    """The law's forces at the end state of the rows in contact on (m,) (indices into the island's k
+    rows; groups: (law, rows of that law, onset constants)), group by group, in on's order: F_n (m,), F_n
+    at x_e + dt delta with rate xd_e + delta (m,) (the forward difference of the Jacobian), F_t (m, 2),
+    k_t, b_t (m, 2). x_e, xd_e, delta (k,), s_e, zt (k, 2)."""
+    m = on.size
+    at = np.full(x_e.size, -1)
+    at[on] = np.arange(m)
+    Fn, Fd = np.empty(m), np.empty(m)
+    Ft, kt, bt = np.empty((m, 2)), np.empty((m, 2)), np.empty((m, 2))
     for law, idx, o in groups:
+        j = at[idx]
         o2 = {q: np.concatenate([a_, a_]) for q, a_ in o.items()}
         xe, xd = x_e[idx], xd_e[idx]
         F2 = law.contact_normal_force(np.concatenate([xe, xe + dt * delta[idx]]),
                                       np.concatenate([xd, xd + delta[idx]]), o2)
-        Fn[idx], Fd[idx] = F2[:idx.size], F2[idx.size:]
-        kt[idx], bt[idx] = law.tangential_stiffness(xe, o)
-        Ft[idx], _ = law.tangential_force(xe, s_e[idx], zt[idx], o, Fn[idx])
+        Fn[j], Fd[j] = F2[:idx.size], F2[idx.size:]
+        kt[j], bt[j] = law.tangential_stiffness(xe, o)
+        Ft[j], _ = law.tangential_force(xe, s_e[idx], zt[idx], o, Fn[j])
     return Fn, Fd, Ft, kt, bt
 
 
@@ -100,31 +119,36 @@ def settle_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq
     a (k, 3) [m/s^2] with the island's held forces taken out, coupling rows
     cp, cq (b,) and blocks Wpq, Wcpq (b, 3, 3), L (k, NL) or None (the moving
     contact point: its start only, lever_start; a resting contact's overlap
-    changes by ~0 over a step, as on the row path). Returns the impulses
-    (k, 3) [N s] to apply with the rows' state written back, or None (nothing
-    written) when the component is not settled: the caller integrates it as
-    an RK4 island."""
+    changes by ~0 over a step, as on the row path). Rows not in contact (the
+    gaps the island lists: a body's near neighbours) carry no force and move
+    with the island; the step holds only if each stays open at the end
+    (x + dt x'+ < 0: no onset inside the step; module docstring). Returns the
+    impulses (k, 3) [N s] to apply with the rows' state written back, or None
+    (nothing written) when the component is not settled: the caller
+    integrates it as an RK4 island."""
     dt = mgr.dt
     k = p.size
-    if np.any(mgr._paper[p]) or not np.all(mgr.active[p]):
+    act = mgr.active[p].copy()
+    if np.any(mgr._paper[p]) or not np.any(act):
         return None
     y = initial_state(mgr, p, x_eng, n, v, vc, np.ones(k, bool), np.array([0, k]))
     lever_start(y, L)
     x0 = y[:, _X].copy()
-    if np.any(x0 <= 0.0):
+    if np.any(x0[act] <= 0.0):
         return None
-    gid = mgr._group_of[p]
-    groups = []
+    on = np.flatnonzero(act)
+    gid = mgr._group_of[p[on]]
+    groups = []  # (law, rows in contact (indices of p), onset constants)
     for g in np.unique(gid):
-        idx = np.flatnonzero(gid == g)
+        idx = on[gid == g]
         groups.append((mgr._groups[g], idx, {key: arr[mgr._pos[p[idx]]] for key, arr in mgr._onset[g].items()}))
-    F_el = np.empty(k)
+    F_el = np.zeros(k)
     for law, idx, o in groups:
         F_el[idx] = law.contact_normal_force(x0[idx], np.zeros(idx.size), o)
     nWn = np.einsum("ki,kij,kj->k", n, W, n)
-    vx = np.sqrt(np.maximum(F_el, 0.0) * x0 * nWn)
+    vx = np.sqrt(np.maximum(F_el, 0.0) * np.maximum(x0, 0.0) * nWn)
     vv, vcc = y[:, _V], y[:, _VC]
-    if not np.all((np.abs(_dot(vv, n)) <= SETTLED_SPEED_RATIO * vx) & (vx > 0)):
+    if not np.all((np.abs(_dot(vv[act], n[act])) <= SETTLED_SPEED_RATIO * vx[act]) & (vx[act] > 0)):
         return None
     t1, t2 = _tangent_basis(n)
     T = np.stack([t1, t2], axis=1)  # (k, 2, 3)
@@ -145,23 +169,41 @@ def settle_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq
             np.add.at(out, cp, np.einsum("bij,bj->bi", Mo, phi[cq]))
         return out
 
+    # the force phi of the rows in contact, zero on the gap rows; Newton on the rows in contact only (a gap
+    # row's z follows from the others' forces: z = z_free + dt M phi, linear, set after the loop)
+    sub = on.size < k
+    if sub:
+        pos = np.full(k, -1)
+        pos[on] = np.arange(on.size)
+        ce = (pos[cp] >= 0) & (pos[cq] >= 0)
+        cp_on, cq_on, Mo_on = pos[cp[ce]], pos[cq[ce]], Mo[ce]
+    else:
+        cp_on, cq_on, Mo_on = cp, cq, Mo
+    phi = np.zeros((k, 3))
+    Fn, Ft, kt, bt = np.zeros(k), np.zeros((k, 2)), np.zeros((k, 2)), np.zeros((k, 2))
     for it in range(SETTLED_NEWTON_MAX + 1):
         xd_e = -z[:, 0]
         x_e = x0 + dt * xd_e
         s_e = s2 + dt * z[:, 1:]
-        Fn, Fd, Ft, kt, bt = _row_forces(groups, x_e, xd_e, s_e, z[:, 1:], delta, dt)
-        phi = np.concatenate([Fn[:, None], Ft], axis=1)
-        R = z - z_free - dt * m_times(phi)
-        conv = np.max(np.abs(R), axis=1) <= tol
+        Fn_o, Fd_o, Ft_o, kt_o, bt_o = _row_forces(groups, on, x_e, xd_e, s_e, z[:, 1:], delta, dt)
+        Fn[on], Ft[on], kt[on], bt[on] = Fn_o, Ft_o, kt_o, bt_o
+        phi[on] = np.concatenate([Fn_o[:, None], Ft_o], axis=1)
+        R = (z - z_free - dt * m_times(phi))[on]
+        conv = np.max(np.abs(R), axis=1) <= tol[on]
         info["settled_iterations"] += 1
         if np.all(conv) or it == SETTLED_NEWTON_MAX:
             break
-        D = np.concatenate([np.maximum((Fd - Fn) / delta, 0.0)[:, None], bt + kt * dt], axis=1)  # (k, 3)
-        Jm = sp.identity(3 * k, format="csc") + dt * _block_matrix(Md * D[:, None, :], cp, cq,
-                                                                    Mo * D[cq][:, None, :], k)
-        z = z - spla.spsolve(Jm, R.ravel()).reshape(k, 3)
-    ok = conv & (x_e > 0) & (Fn > 0) & (np.abs(xd_e) <= SETTLED_SPEED_RATIO * vx)
-    if not np.all(ok):
+        D = np.concatenate([np.maximum((Fd_o - Fn_o) / delta[on], 0.0)[:, None], bt_o + kt_o * dt], axis=1)
+        Jm = sp.identity(3 * on.size, format="csc") + dt * _block_matrix(Md[on] * D[:, None, :], cp_on, cq_on,
+                                                                          Mo_on * D[cq_on][:, None, :], on.size)
+        z[on] = z[on] - spla.spsolve(Jm, R.ravel()).reshape(on.size, 3)
+    gap = ~act
+    if sub:  # the gap rows' end velocities from the converged forces (exact: linear in phi)
+        z[gap] = (z_free + dt * m_times(phi))[gap]
+        xd_e = -z[:, 0]
+        x_e = x0 + dt * xd_e
+    ok = conv & (x_e[on] > 0) & (Fn[on] > 0) & (np.abs(xd_e[on]) <= SETTLED_SPEED_RATIO * vx[on])
+    if not np.all(ok) or np.any(x_e[gap] >= 0.0):
         return None
     # the step's result: the law's forces at the end state, held over the step (as NumpyPath._settled)
     f = Fn[:, None] * n + np.einsum("ka,kai->ki", Ft, T)
@@ -171,23 +213,23 @@ def settle_island(mgr, p, x_eng, n, v, vc, W, Wc, a, t0, info, cp, cq, Wpq, Wcpq
         np.add.at(Wf, cp, np.einsum("bij,bj->bi", Wpq, f[cq]))
         np.add.at(Wcf, cp, np.einsum("bij,bj->bi", Wcpq, f[cq]))
     v1 = vv + dt * (Wf + a)
-    Fc = np.empty(k)
+    Fc = np.zeros(k)
     for law, idx, o in groups:
         Fc[idx] = law.normal_force(x_e[idx], np.zeros(idx.size), o)
-    dx = x_e - x0
+    dx = np.where(act, x_e - x0, 0.0)
     y[:, _X] = x_e
     y[:, _V] = v1
     y[:, _VC] = vcc + dt * (Wcf + a)
-    y[:, _S] = np.einsum("ka,kai->ki", s_e, T)
+    y[on, _S] = np.einsum("ka,kai->ki", s_e[on], T[on])
     y[:, _P] = f * dt
     y[:, _PI] = 0.5 * dt * dt * f
     y[:, _WEL] += Fc * dx
     y[:, _WVI] += (Fn - Fc) * dx
-    y[:, _Q] += np.einsum("ka,ka->k", bt * z[:, 1:], z[:, 1:]) * dt
+    y[:, _Q] += np.einsum("ka,ka->k", bt * z[:, 1:], z[:, 1:]) * dt * act
     y[:, _WT] -= _dot(f - Fn[:, None] * n, v1 - _dot(v1, n)[:, None] * n) * dt
-    book_records(mgr, p, x_e, xd_e, Fn, Ft, y, t0)
-    info["settled"] += k
-    return _write_back(mgr, p, n, y, groups, t0)
+    book_records(mgr, p[on], x_e[on], xd_e[on], Fn[on], Ft[on], y[on], t0)
+    info["settled"] += on.size
+    return _write_back(mgr, p, n, y, groups, t0, act)
 
 
 def book_records(mgr, p, x_e, xd_e, Fn, Ft, y, t0):
@@ -227,19 +269,21 @@ def store_end_state(mgr, p, n, y):
     mgr.phase[p] = np.where(mgr.xdot[p] < 0, 1, 0)
 
 
-def _write_back(mgr, p, n, y, groups, t0):
+def _write_back(mgr, p, n, y, groups, t0, act):
     """The rows' end state into the manager (as NumpyPath._step_group for settled rows: no timing
-    correction, the force is held over the whole step); returns the impulses P - J_previous (k, 3)."""
+    correction, the force is held over the whole step); act (k,): the rows in contact (the others stay
+    open gaps, their end gap kept as the manager's own, _own_gaps); returns the impulses P - J_previous
+    (k, 3)."""
     dt = mgr.dt
-    mgr.active[p] = True
+    mgr.active[p] = act
     store_end_state(mgr, p, n, y)
     for law, idx, _o in groups:
         mgr.outside[p[idx]] |= law.outside(np.maximum(y[idx, _X], 0.0))
-    mgr.settled[p] = True
+    mgr.settled[p] = act
     mgr.couple[p] = 0.0
     if mgr.history:
         Pn = _dot(y[:, _P], n) / dt
-        for r in range(p.size):
+        for r in np.flatnonzero(act):
             mgr._hist.setdefault(int(p[r]), []).append((t0, float(Pn[r])))
     impulse = y[:, _P] - mgr.J[p]
     mgr.J[p] = 0.0
