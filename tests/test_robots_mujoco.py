@@ -449,3 +449,73 @@ def test_the_ant_under_rk4_sees_its_drives_in_the_step_they_act():
             z.append(float(data.qpos[2]))
     assert adapter.jumps == 0 and adapter.deep_onsets == 0
     assert max(z) < ANT_RK4_Z_MAX, max(z)
+
+
+#: The contacts' inverse inertia (engines.mujoco._known.KnownForces.solve) against MuJoCo's own
+#: Euler step's velocity change per unit generalised impulse, column by column: measured 3.5e-13
+#: and 4.5e-13 (implicit damping off and on); the margin is for the constraint solver's
+#: convergence and the finite impulse (linear while the limit row stays pressed)
+STEP_RESPONSE_RTOL = 1e-9
+
+
+@pytest.mark.parametrize("implicit", [True, False])
+def test_the_contacts_inverse_inertia_is_the_euler_steps_response(implicit):
+    """A three-link arm (damping 5 N m s/rad, armature 0.002 kg m^2, dt = 2 ms,
+    Euler) pressed by gravity onto the upper limit of its root hinge: the
+    velocity change that KnownForces.solve gives per unit generalised impulse
+    is MuJoCo's own step's (a small qfrc_applied on each dof in turn, against
+    the step without it) within STEP_RESPONSE_RTOL, with MuJoCo's implicit
+    Euler damping on (its default: the step solves with M + h B) and off.
+    With the damping on, the inverse inertia from M alone (M_eff^-1 with the
+    limit's row, as before issue 13's fix) is off by more than 1 %: 43x on
+    the wrist, whose inertia is below h B (measured)."""
+    import copy
+
+    from engines.mujoco._known import KnownForces
+
+    xml = ('<mujoco><option timestep="0.002" integrator="Euler"/><default><joint damping="5" armature="0.002"/>'
+           '</default><worldbody><body pos="0 0 1"><joint type="hinge" axis="0 1 0" limited="true" range="0 30"/>'
+           '<geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>'
+           '<body pos="0.3 0 0"><joint type="hinge" axis="0 1 0"/>'
+           '<geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.025" mass="0.5"/>'
+           '<body pos="0.25 0 0"><joint type="hinge" axis="1 0 0"/><geom type="box" size="0.05 0.03 0.02" mass="0.2"/>'
+           '</body></body></body></worldbody></mujoco>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    if not implicit:
+        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
+    data = mujoco.MjData(model)
+    data.qpos[:] = [math.radians(30.5), 0.3, 0.2]  # past the upper limit, where gravity holds it
+    mujoco.mj_forward(model, data)
+    known = KnownForces(model, data)
+    known.change()
+    assert known._Js.shape[0] == 1  # the limit's row is pressed
+    nv, h, impulse = model.nv, model.opt.timestep, 1e-4
+    X = np.zeros((nv, nv))
+    known.solve(X, np.eye(nv))
+    free = copy.copy(data)
+    mujoco.mj_step(model, free)
+    dv0 = free.qvel - data.qvel
+    engine = np.zeros((nv, nv))
+    for i in range(nv):
+        pushed = copy.copy(data)
+        pushed.qfrc_applied[i] = impulse / h
+        mujoco.mj_step(model, pushed)
+        engine[i] = (pushed.qvel - data.qvel - dv0) / impulse
+    scale = np.abs(engine).max(axis=1)
+    assert np.all(np.abs(X - engine).max(axis=1) < STEP_RESPONSE_RTOL * scale)
+    Minv = np.zeros((nv, nv))
+    mujoco.mj_solveM(model, data, Minv, np.eye(nv))
+    with_m = Minv - known._G.T @ known._Ainv @ known._G  # M_eff^-1 from M alone
+    off = np.abs(with_m - engine).max(axis=1) / scale
+    assert (off.max() > 1e-2) == implicit, off
+
+
+def test_the_ant_under_torque_seed_4_gains_no_energy_at_rest():
+    """benchmarks/robots.py's ant under torque seed 4 (its rest sweep): 1,000
+    steps of the seeded torques, then 120 at rest. On main at 7d84f67 rest
+    step 112 rose 3.86 mJ (2.23 mJ allowed): the contacts' inverse inertia
+    and the held forces' answer from the joint limits were not the engine
+    step's (engines.mujoco._known: implicit Euler damping, the held forces'
+    response when the active rows change). No rest step above the bound."""
+    _, _, _, account, _, _ = _at_rest("ant.xml", 4, 1000, 120)
+    assert account.gains == []

@@ -51,8 +51,20 @@ limit is heavier at the foot than its free joint says. The pairs' W, their
 island couplings and the impulses' velocity change kept for the next
 a_ext use M_eff^-1 (:meth:`KnownForces.solve`) with the rows active in the
 prediction, and the constraint forces compared between steps are those
-without the contacts' own share (their response -J_S^T (A_S + R_S)^-1
-J_S M^-1 Q_contacts, taken out of the prediction and of the last step's).
+without the share of the contacts' impulses that leave a_ext (their
+response -J_S^T (A_S + R_S)^-1 J_S M^-1 Q_unheld, taken out of the
+prediction and of the last step's). The held forces (resting contacts:
+engines.mujoco.adapter.held_forces) stay in the next a_ext as its
+prediction, and so does the rows' response to them: when the active rows
+change between steps (a limit engaging or letting go under a resting
+humanoid), the held forces' response changes with them, and that change
+reaches the contacts in its step. With the held forces' response taken out
+on both sides, a limit engaging gave the head's and an arm's contacts a
+spurious a_ext the size of the limit's answer to their 85 N (their internal
+approach moved 2-13x the engine's), and RestEnergy's contacts' own balance
+rose 1.4e-4 J in that step (issue 13). A held pair's own force left its
+own a_ext (engines.mujoco.adapter): it takes its share of that change back
+out (:meth:`KnownForces.held_change`).
 
 MuJoCo's Euler step takes the dofs' damping implicitly (:func:`euler_damping`):
 its velocity change is h (M + h B)^-1 M qacc, so every M^-1 here (W, the
@@ -151,13 +163,15 @@ class KnownForces:
         self._types = frozenset()  # the current call's rows
         self._user = np.zeros(nv)  # qfrc_applied + xfrc_applied of the step in progress
         self._contacts = np.zeros(nv)  # the managed contacts' generalised force of the step in progress
-        self._reaction = np.zeros(nv)  # the active constraints' response to it (module docstring)
+        self._unheld = np.zeros(nv)  # its part not held into the next step (the rest stays in a_ext)
+        self._reaction = np.zeros(nv)  # the active constraints' response to that part (module docstring)
         self._last: np.ndarray | None = None  # the known forces the last step's a_ext holds (nv,)
         self._dq = np.zeros((1, nv))
         # the active rows of the step start's prediction: J_S (r, nv), M^-1 J_S^T as rows (r, nv),
         # (A_S + R_S)^-1 (r, r); r = 0: none
         self._Js = self._G = np.zeros((0, nv))
         self._Ainv = np.zeros((0, 0))
+        self._old = (self._Js, self._Ainv, self._G)  # the last step's rows (held_change)
         self._S: np.ndarray | None = None  # Euler's implicit damping (damped_response) at this step, or None
 
     def read(self, kind: str, stage: int) -> None:
@@ -194,18 +208,41 @@ class KnownForces:
         d = self.data
         np.add(d.qfrc_spring, d.qfrc_gravcomp, out=self.passive[j])
 
-    def applied(self, before: np.ndarray) -> None:
+    def applied(self, before: np.ndarray, unheld: np.ndarray | None) -> None:
         """The managed contacts' generalised force of this step: ``qfrc_passive``
-        after the hook added them less ``before`` (nv,); and the active
-        constraint rows' response to it."""
+        after the hook added them less ``before`` (nv,); ``unheld`` (nv,) its
+        part whose impulse leaves the next step's a_ext (None: none, every
+        force held or no force); and the active constraint rows' response to
+        that part. The held forces' response stays in the constraint forces
+        compared between steps (module docstring)."""
         np.subtract(self.data.qfrc_passive, before, out=self._contacts)
-        self._reaction = self._response(self._contacts)
+        if unheld is None:
+            self._unheld[:] = 0.0
+        else:
+            self._unheld[:] = unheld
+        self._reaction = self._response(self._unheld)
 
-    def _response(self, Q: np.ndarray) -> np.ndarray:
-        """-J_S^T (A_S + R_S)^-1 J_S M^-1 Q: the active rows' constraint force in answer to Q (nv,)."""
-        if not self._Js.shape[0]:
+    def _response(self, Q: np.ndarray, rows=None) -> np.ndarray:
+        """-J_S^T (A_S + R_S)^-1 J_S M^-1 Q: the active rows' constraint force in answer to Q (nv,)
+        (rows: (J_S, (A_S + R_S)^-1, M^-1 J_S^T as rows), default this step's)."""
+        Js, Ainv, G = (self._Js, self._Ainv, self._G) if rows is None else rows
+        if not Js.shape[0]:
             return np.zeros(self.model.nv)
-        return -self._Js.T @ (self._Ainv @ (self._G @ Q))
+        return -Js.T @ (Ainv @ (G @ Q))
+
+    def held_change(self, Q: np.ndarray) -> np.ndarray:
+        """S M^-1 (r_now(Q) - r_last(Q)) [(nv,)]: how the change of the active
+        rows since the last step changes the velocity a held force's
+        generalised force Q (nv,) gives a step, per h (r: the rows' response,
+        :meth:`_response`; S: Euler's implicit damping). :meth:`change` holds
+        it for every held force (their share of the last step's a_ext was the
+        old rows'); a held pair's own force, which left its own a_ext, takes
+        it back out with this."""
+        dQ = self._response(Q) - self._response(Q, self._old)
+        out = np.zeros((1, self.model.nv))
+        if np.any(dQ):
+            self.solve_free(out, dQ.reshape(1, -1))
+        return out[0]
 
     def user_now(self) -> np.ndarray:
         """qfrc_applied plus xfrc_applied's generalised force (at each body's
@@ -218,13 +255,15 @@ class KnownForces:
         return Q
 
     def constraint_now(self) -> np.ndarray:
-        """This state's constraint forces without the managed contacts' share
-        [N or N m] (nv,), solved as MuJoCo will after the hook with the last
-        step's contact forces held, less the active rows' response to them;
+        """This state's constraint forces without the share of the managed
+        contacts' unheld impulses [N or N m] (nv,), solved as MuJoCo will after
+        the hook with the last step's contact forces held, less the active
+        rows' response to their unheld part (module docstring);
         fixes the active rows for :meth:`solve` (module docstring). Needs
         this step's qfrc_actuator (mj_fwdActuation first)."""
         m, d = self.model, self.data
         n = int(d.nefc)
+        self._old = (self._Js, self._Ainv, self._G)  # the last step's rows (held_change)
         self._Js = self._G = np.zeros((0, m.nv))
         self._Ainv = np.zeros((0, 0))
         if n == 0:
@@ -253,7 +292,7 @@ class KnownForces:
         finally:
             d.qfrc_passive[:] = passive
             d.efc_force[:] = warm
-        return Qc - self._response(self._contacts)
+        return Qc - self._response(self._unheld)
 
     def solve(self, out: np.ndarray, rows: np.ndarray) -> None:
         """out = rows M_eff^-1 (each row y_i -> M_eff^-1 y_i, (k, nv)): MuJoCo's

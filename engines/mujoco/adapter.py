@@ -123,7 +123,7 @@ from engines.base import (
     check_law_curvature,
 )
 from engines.mujoco import _held, _resting
-from engines.mujoco._known import KnownForces
+from engines.mujoco._known import KnownForces, damped_response
 from engines.mujoco._stepping import StepTracker
 from msf_contact._validate import ValidityWarning
 
@@ -848,6 +848,7 @@ class MujocoAdapter(EngineAdapter):
             if kind == "jump":
                 self._jump()
             self._in_hook = True
+            self._unheld = None  # the generalised force of the step's forces not held (set by _compute)
             try:
                 if self._compute():
                     return  # the resting step applied its forces itself (engines.mujoco._resting: no pair
@@ -870,7 +871,7 @@ class MujocoAdapter(EngineAdapter):
             if not fixed2:
                 mujoco.mj_applyFT(model, data, -F, _ZERO3, data.xipos[b2] + r2, b2, data.qfrc_passive)
         if before is not None:
-            known.applied(before)
+            known.applied(before, self._unheld)
 
     # -- the run-time switch per pair -----------------------------------------------
     def set_mode(self, which, mode: str) -> None:
@@ -1292,6 +1293,7 @@ class MujocoAdapter(EngineAdapter):
             if np.any(sub):
                 self._fast.apply(d, *self._fast.forces(d, pair[sub], force[sub], W_fast), out=Q)
         self._slow_forces(pair, force, hit, keep, points, Q)
+        self._unheld = Q
         self._cross_dv(Q * dt, W_fast, jacs)
         # a held pair's own force is the manager's, not a prediction: leave it out too
         for k in np.flatnonzero(keep):
@@ -1430,6 +1432,7 @@ class MujocoAdapter(EngineAdapter):
             K.apply(Q, d.xipos, d.xanchor, d.xmat, *sub)
         if self._slow:
             self._slow_forces(pair, force, hit, keep, points, Q)
+        self._unheld = Q
         Qdt = Q * dt
         if np.any(Qdt):  # _cross_dv
             dq = np.zeros((1, m.nv))
@@ -1586,6 +1589,9 @@ class MujocoAdapter(EngineAdapter):
                 a_ext = self._first_step_a_ext(p)
             if dq_known is not None and self._have_last[i]:  # this step's drives, user and constraint forces
                 a_ext = a_ext + J @ dq_known
+                Fh = self.manager._held_force[i]
+                if np.any(Fh):  # its own held force left its a_ext: not the rows' change of its response
+                    a_ext = a_ext - J @ self._known.held_change(J.T @ Fh)
             self._last_v[i], self._last_dv[i], self._have_last[i] = v_rel, 0.0, True
             reach = float(closing_distance(-float(v_rel @ n), -float(a_ext @ n), dt, CANDIDATE_FACTOR))
             if x <= -(reach + self._push[i]) and not required[i]:
@@ -1795,7 +1801,8 @@ class MujocoAdapter(EngineAdapter):
                     Q += sign * (jac.T @ self.manager.J[i])
         dq = np.zeros((1, m.nv))
         mujoco.mj_solveM(m, s, dq, Q.reshape(1, -1))
-        return dq[0]
+        S = damped_response(m, s)  # MuJoCo's Euler applied the correction with its implicit damping
+        return dq[0] if S is None else S @ dq[0]
 
     def _angular_velocity(self, body: int) -> np.ndarray:
         """The body's angular velocity in world axes [rad/s] (3,): cvel's angular part, which
