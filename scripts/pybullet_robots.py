@@ -121,19 +121,25 @@ def _account(acc, E, C) -> str:
             f"running minimum ({len(acc.contact_gains)} steps above RestEnergy's bound)")
 
 
+def _run(ad, robots, dt: float, seconds: float) -> str:
+    """Step ``ad`` for ``seconds`` with a RestEnergy account of ``robots`` kept
+    each step; the account's summary (_account)."""
+    acc = RestEnergy(ad, robots)
+    E, C = [acc.total], [acc.contacts]
+    for _ in range(int(round(seconds / dt))):
+        ad.step()
+        E.append(acc.update())
+        C.append(acc.contacts)
+    return _account(acc, E, C)
+
+
 def landing(dt: float, seconds: float) -> str:
     """ant.xml put down on its ankle limits 0.5 mm above the floor, no torques
     (tests/test_robots_pybullet.py takes 0.3 s at 10 ms)."""
     c = scenes.new_client(dt, gravity=9.81)
     try:
         robots, ad = _on_ankle_limits(c)
-        acc = RestEnergy(ad, robots)
-        E, C = [acc.total], [acc.contacts]
-        for _ in range(int(round(seconds / dt))):
-            ad.step()
-            E.append(acc.update())
-            C.append(acc.contacts)
-        return f"ant landing on its ankle limits, dt {dt:g} s, {seconds:g} s: " + _account(acc, E, C)
+        return f"ant landing on its ankle limits, dt {dt:g} s, {seconds:g} s: " + _run(ad, robots, dt, seconds)
     finally:
         pb.disconnect(c)
 
@@ -154,13 +160,7 @@ def twist(dt: float, seconds: float, wz: float = 5.0) -> str:
             if b"hip" in info[1]:
                 pb.resetJointState(u, j, pb.getJointState(u, j, physicsClientId=c)[0], -wz, physicsClientId=c)
         ad.placed([u])
-        acc = RestEnergy(ad, robots)
-        E, C = [acc.total], [acc.contacts]
-        for _ in range(int(round(seconds / dt))):
-            ad.step()
-            E.append(acc.update())
-            C.append(acc.contacts)
-        return f"ant twisted on its ankle limits, dt {dt:g} s, {seconds:g} s: " + _account(acc, E, C)
+        return f"ant twisted on its ankle limits, dt {dt:g} s, {seconds:g} s: " + _run(ad, robots, dt, seconds)
     finally:
         pb.disconnect(c)
 

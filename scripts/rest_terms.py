@@ -52,7 +52,7 @@ def _potential(model, s, qpos, qvel):
     import mujoco
     import numpy as np
 
-    from engines.mujoco.robots import _mechanical
+    from engines.mujoco.robots import _mechanical, passive_without_hook
 
     s.qpos[:], s.qvel[:] = qpos, 0.0
     mujoco.mj_kinematics(model, s)
@@ -67,12 +67,7 @@ def _potential(model, s, qpos, qvel):
     mujoco.mj_rne(model, s, 0, b)
     M = np.zeros((model.nv, model.nv))
     mujoco.mj_fullM(model, s, M)
-    hook = mujoco.get_mjcb_passive()
-    mujoco.set_mjcb_passive(None)
-    try:
-        mujoco.mj_passive(model, s)
-    finally:
-        mujoco.set_mjcb_passive(hook)
+    passive_without_hook(model, s)
     T, U, _ = _mechanical(model, s, qvel)
     return M, U, -g + s.qfrc_spring, -(b - g)
 

@@ -134,13 +134,20 @@ def _spring_power(model, s) -> float:
         return 0.0
     if model.ntendon:
         mujoco.mj_tendon(model, s)
+    passive_without_hook(model, s)
+    return float(s.qfrc_spring @ s.qvel)
+
+
+def passive_without_hook(model: mujoco.MjModel, s: mujoco.MjData) -> None:
+    """``mj_passive`` on ``s`` with the process's ``mjcb_passive`` hook set
+    aside (restored after, also on error): the model's own passive forces
+    (qfrc_spring, qfrc_damper, ... (nv,)) without the managed contacts'."""
     hook = mujoco.get_mjcb_passive()
     mujoco.set_mjcb_passive(None)
     try:
         mujoco.mj_passive(model, s)
     finally:
         mujoco.set_mjcb_passive(hook)
-    return float(s.qfrc_spring @ s.qvel)
 
 
 def limit_force(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray:
