@@ -312,6 +312,10 @@ def test_adapter_refuses_unknown_bodies_and_non_smooth_shapes():
             PybulletAdapter(c, [PairSpec(scene.body1, scene.body2, other)])
         with pytest.raises(ValueError, match="client"):
             PybulletAdapter(12345, [PairSpec(scene.body1, scene.body2, law)])
+        with pytest.raises(ValueError, match=r"limit_trial = 1 must be True or False"):
+            PybulletAdapter(c, [PairSpec(scene.body1, scene.body2, law)], limit_trial=1)
+        with pytest.raises(ValueError, match=r"compiled = 'yes' must be True or False"):
+            PybulletAdapter(c, [PairSpec(scene.body1, scene.body2, law)], compiled="yes")
     finally:
         scene.close()
 
