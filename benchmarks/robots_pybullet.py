@@ -1,7 +1,8 @@
 """Benchmark: ``pybullet_data/mjcf/ant.xml`` and ``humanoid.xml`` in
 pybullet (``loadMJCF``) at MuJoCo's time steps of the files (ant 10 ms,
-humanoid 2 ms), MSF on every body-floor contact (natural rubber on steel,
-:func:`engines.pybullet.robots.load_mjcf_with_msf_floor`) against
+humanoid 2 ms), MSF on every body-floor contact (natural rubber on steel, each foot's
+tangential force capped at the friction pybullet's own contact gives the
+pair, :func:`engines.pybullet.robots.load_mjcf_with_msf_floor`) against
 pybullet's own contact, under the same seeded random torques (uniform in
 each motor's MJCF torque range, gear x ctrlrange, seed 13) for STEPS steps,
 then STEPS steps with the torques off. Per record: the wall time per step
@@ -58,8 +59,10 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *
     contacts see them in their step); False: through pybullet's own call
     (seen a step late). limit_trial: ``PybulletAdapter(limit_trial=)`` (the
     joints a limit holds found by a trial step; default: with the torques
-    told, which it needs). law_options: keyword arguments of the feet's law
-    (``make_law``, e.g. ``{"mu": 1.0}`` for a Coulomb cap; default none)."""
+    told, which it needs). law_options: keyword arguments of
+    ``load_mjcf_with_msf_floor`` for the feet's law (``mu``: their Coulomb
+    cap, by default the friction pybullet's own contact gives each pair, the
+    built-in variant's; ``{"mu": None}`` for none, the paper's law)."""
     import pybullet as pb
     import pybullet_data
 
@@ -110,7 +113,9 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *
         if msf:
             out.update(rest_mechanical_J=acc.mechanical, rest_engine_added_J=acc.engine_added,
                        rest_contacts_rise_J=_rise(np.array(C)), rest_gain_steps=len(acc.gains),
-                       rest_contact_gain_steps=len(acc.contact_gains))
+                       rest_contact_gain_steps=len(acc.contact_gains),
+                       rest_largest_gain_J=max((g[1] for g in acc.gains), default=0.0),
+                       rest_largest_contact_gain_J=max((g[1] for g in acc.contact_gains), default=0.0))
         if adapter is not None:
             out.update(records=len(adapter.records), managed_contacts=len(adapter.pairs), jumps=adapter.jumps,
                        outside_validity=sum(bool(r.outside_validity) for r in adapter.records))

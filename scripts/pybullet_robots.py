@@ -4,13 +4,16 @@ docs/engines.md quotes (issue 13):
     .venv/bin/python scripts/pybullet_robots.py dumbbell     # two links on a hinge resting, 1 and 0.2 ms
     .venv/bin/python scripts/pybullet_robots.py ant          # ant.xml resting on its feet, 10, 1 and 0.2 ms
     .venv/bin/python scripts/pybullet_robots.py twist        # ant.xml on its ankle limits, twisted, 10, 5, 2.5 ms
-    .venv/bin/python scripts/pybullet_robots.py seeds        # the robots_pybullet benchmark's ant, seeds 13, 1, 2, 3
+    .venv/bin/python scripts/pybullet_robots.py seeds        # the robots_pybullet benchmark's ant, seeds 13, 1, 2, 3, 4
     .venv/bin/python scripts/pybullet_robots.py landing      # ant.xml put down on its ankle limits, 0.3 s at 10 ms
 
 ``--no-trial`` makes the adapters without ``limit_trial`` (a joint within
 JOINT_LIMIT_TOL of a limit taken as held, as before the trial step);
-``seeds --mu 1.0`` gives the feet's law a Coulomb cap |F_t| <= mu F_n (MSF
-has none by default).
+``--mu`` the feet's Coulomb cap |F_t| <= mu F_n
+(``load_mjcf_with_msf_floor(mu=)``): ``engine`` (the default: the friction
+pybullet's own contact gives each pair, the ant's feet 0.75, the
+humanoid's 0.25), ``none`` (the paper's law, no cap) or a number;
+``seeds --model humanoid.xml`` runs the benchmark's humanoid instead.
 
 Each run puts the body on a steel floor (natural rubber, gravity 9.81
 m/s^2), no torques, and prints the mechanical energy plus the elastic
@@ -52,6 +55,10 @@ def watch(c, ad, uids, seconds, dt) -> str:
             f"{np.max(E - np.minimum.accumulate(E)):.3g} J")
 
 
+#: load_mjcf_with_msf_floor(mu=) of the robots (--mu)
+MU = "engine"
+
+
 def dumbbell(shape: str, dt: float, seconds: float) -> str:
     """Two links (spheres, or capsules lying along y) of 1 kg, R 20 mm, 0.2 m
     apart on a hinge about y, resting on the floor."""
@@ -86,7 +93,7 @@ def ant(dt: float, seconds: float) -> str:
     c = scenes.new_client(dt, gravity=9.81)
     try:
         robots, floor, pairs, shapes = load_mjcf_with_msf_floor(
-            c, os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml"), PAIR)
+            c, os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml"), PAIR, mu=MU)
         u = robots[0]
         gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
         pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
@@ -101,7 +108,7 @@ def _on_ankle_limits(c):
     """ant.xml in client c with its ankles on their limits, put down 0.5 mm
     above the floor, and its adapter: (robots, adapter)."""
     robots, floor, pairs, shapes = load_mjcf_with_msf_floor(
-        c, os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml"), PAIR)
+        c, os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml"), PAIR, mu=MU)
     u = robots[0]
     for j in range(pb.getNumJoints(u, physicsClientId=c)):
         info = pb.getJointInfo(u, j, physicsClientId=c)
@@ -165,20 +172,20 @@ def twist(dt: float, seconds: float, wz: float = 5.0) -> str:
         pb.disconnect(c)
 
 
-def seeds(tell: bool, mu: float | None = None) -> list[str]:
-    """The robots_pybullet benchmark's MSF ant (1,000 steps of torques, 1,000
-    at rest) under seeds 13 (the benchmark's), 1, 2 and 3, the torques told
-    to the adapter or set through pybullet's own call (seen a step late)."""
+def seeds(tell: bool, mu, model: str = "ant.xml") -> list[str]:
+    """The robots_pybullet benchmark's MSF robot (1,000 steps of torques, 1,000
+    at rest) under seeds 13 (the benchmark's), 1, 2, 3 and 4, the torques told
+    to the adapter or set through pybullet's own call (seen a step late); mu
+    the feet's cap (load_mjcf_with_msf_floor(mu=))."""
     import sys
 
     sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir))
     from benchmarks.robots_pybullet import run_model
 
     out = []
-    for seed in (13, 1, 2, 3):
-        r = run_model("ant.xml", 1000, True, seed=seed, tell=tell, limit_trial=TRIAL and tell,
-                      law_options=None if mu is None else {"mu": mu})
-        out.append(f"ant, seed {seed}, torques {'told' if tell else 'late'}, limit trial {TRIAL and tell}, mu {mu}: rest "
+    for seed in (13, 1, 2, 3, 4):
+        r = run_model(model, 1000, True, seed=seed, tell=tell, limit_trial=TRIAL and tell, law_options={"mu": mu})
+        out.append(f"{model}, seed {seed}, torques {'told' if tell else 'late'}, limit trial {TRIAL and tell}, mu {mu}: rest "
                    f"{r['rest_energy_J'][0]:.1f} -> {r['rest_energy_J'][1]:.1f} J, rise above the running minimum "
                    f"{r['rest_rise_J']:.3g} J, pybullet added {r['rest_engine_added_J']:.3g} J, the contacts' own "
                    f"balance rose {r['rest_contacts_rise_J']:.3g} J ({r['rest_contact_gain_steps']} steps above "
@@ -191,9 +198,12 @@ if __name__ == "__main__":
     ap.add_argument("case", choices=("dumbbell", "ant", "twist", "seeds", "landing"))
     ap.add_argument("--no-trial", action="store_true", help="adapters without limit_trial")
     ap.add_argument("--late", action="store_true", help="seeds: also with the torques set through pybullet's call")
-    ap.add_argument("--mu", type=float, default=None, help="seeds: a Coulomb cap on the feet's tangential force")
+    ap.add_argument("--mu", default="engine",
+                    help="the feet's Coulomb cap: engine (pybullet's friction of the pair), none, or a number")
+    ap.add_argument("--model", default="ant.xml", choices=("ant.xml", "humanoid.xml"), help="seeds: the robot")
     args = ap.parse_args()
     TRIAL = not args.no_trial
+    MU = None if args.mu == "none" else (args.mu if args.mu == "engine" else float(args.mu))
     if args.case == "dumbbell":
         for shape in ("sphere", "capsule"):
             for dt in (1e-3, 2e-4):
@@ -201,7 +211,7 @@ if __name__ == "__main__":
         print(dumbbell("capsule", 1e-3, 1.0))
     elif args.case == "seeds":
         for tell in (True, False) if args.late else (True,):
-            print("\n".join(seeds(tell, args.mu)))
+            print("\n".join(seeds(tell, MU, args.model)))
     elif args.case == "landing":
         print(landing(1e-2, 0.3))
     elif args.case == "twist":

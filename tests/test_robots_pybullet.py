@@ -24,6 +24,7 @@ from engines._contacts.state import ENERGY_GAIN_RTOL  # noqa: E402
 from engines.pybullet import scenes  # noqa: E402
 from engines.pybullet.adapter import PybulletAdapter  # noqa: E402
 from engines.pybullet.robots import (  # noqa: E402
+    ENGINE_FRICTION,
     REST_ROUNDOFF,
     RestEnergy,
     load_mjcf,
@@ -51,10 +52,12 @@ def _path(name):
     return os.path.join(pybullet_data.getDataPath(), "mjcf", name)
 
 
-def _load_ant(c):
-    """ant.xml in client c with MSF feet (natural rubber on steel): its body id, the floor's, pairs, shapes."""
+def _load_ant(c, mu=ENGINE_FRICTION):
+    """ant.xml in client c with MSF feet (natural rubber on steel; their Coulomb
+    cap load_mjcf_with_msf_floor(mu=)): its body id, the floor's, pairs, shapes."""
     robots, floor, pairs, shapes = load_mjcf_with_msf_floor(c, _path("ant.xml"),
-                                                            ContactPair(preset("natural-rubber"), preset("steel")))
+                                                            ContactPair(preset("natural-rubber"), preset("steel")),
+                                                            mu=mu)
     return robots[0], floor, pairs, shapes
 
 
@@ -301,11 +304,15 @@ def test_the_ant_rests_on_its_feet_without_energy_gain():
     never rises in a step beyond
     REST_GAIN_RTOL (scripts/pybullet_robots.py ant: 662.2 -> 652.9 J; at 1 ms
     and 0.2 ms the largest rise above the running minimum is 0.079 J and
-    0.005 J)."""
+    0.005 J). The feet without a Coulomb cap (mu=None, the paper's law):
+    free hinges and no motor, the ant stands only while its feet's
+    tangential springs hold its legs from splaying; with pybullet's friction
+    (0.75, the default) the feet slide, the legs splay and it drops onto its
+    ankle limits (docs/engines.md)."""
     dt = DT["ant.xml"]
     c = scenes.new_client(dt, gravity=9.81)
     try:
-        u, floor, pairs, shapes = _load_ant(c)
+        u, floor, pairs, shapes = _load_ant(c, mu=None)
         _put_down(c, u, floor, 5e-4)
         ad = PybulletAdapter(c, pairs, link_shapes=shapes)
         nj = pb.getNumJoints(u, physicsClientId=c)
@@ -428,11 +435,11 @@ def test_a_joint_stopped_at_its_limit_does_not_enter_a_ext_as_an_acceleration(tm
 FOOT_DRIFT_ATOL = 2e-5
 
 
-def _ant_on_its_ankle_limits(c, limit_trial=False):
-    """The ant loaded in client c, its ankles put on their limits (where its
-    torques leave it), put down on the floor 0.5 mm deep, and its
-    PybulletAdapter (PybulletAdapter(limit_trial=)): (body id, adapter)."""
-    u, floor, pairs, shapes = _load_ant(c)
+def _ant_on_its_ankle_limits(c, limit_trial=False, mu=ENGINE_FRICTION):
+    """The ant loaded in client c (its feet's Coulomb cap mu), its ankles put
+    on their limits (where its torques leave it), put down on the floor 0.5 mm
+    deep, and its PybulletAdapter (PybulletAdapter(limit_trial=)): (body id, adapter)."""
+    u, floor, pairs, shapes = _load_ant(c, mu)
     for j in range(pb.getNumJoints(u, physicsClientId=c)):
         info = pb.getJointInfo(u, j, physicsClientId=c)
         if b"ankle" in info[1]:
@@ -552,11 +559,14 @@ def test_what_the_twisted_ant_on_its_ankle_limits_gains_at_10_ms_pybullet_adds(l
     holds found by a trial step (PybulletAdapter(limit_trial=True)) not
     beyond REST_RISE_RTOL of the account (measured 0 J: it never rose above
     its running minimum; 1.41 J without the trial, the ankles held in the
-    contacts' inverse inertia whether pybullet's limit held them or not)."""
+    contacts' inverse inertia whether pybullet's limit held them or not).
+    The feet without a Coulomb cap (mu=None, the paper's law): with
+    pybullet's friction, the default, nothing is pumped
+    (test_the_twisted_ant_with_pybullets_friction_on_its_feet_is_not_pumped)."""
     dt = DT["ant.xml"]
     c = scenes.new_client(dt, gravity=9.81)
     try:
-        u, ad = _ant_on_its_ankle_limits(c, limit_trial)
+        u, ad = _ant_on_its_ankle_limits(c, limit_trial, mu=None)
         ad.step(50)
         _twist(c, u, 5.0)
         ad.placed([u])
@@ -573,6 +583,66 @@ def test_what_the_twisted_ant_on_its_ankle_limits_gains_at_10_ms_pybullet_adds(l
         assert acc.engine_added > rise  # pybullet's steps put it there (measured 52.8 J; 43.4 J)
         assert rise_contacts < 0.05 * acc.engine_added  # measured 1.41 J; 0 J
         assert (rise_contacts <= REST_RISE_RTOL * abs(acc.total)) == limit_trial, (rise_contacts, acc.total)
+    finally:
+        pb.disconnect(c)
+
+
+def test_the_feet_are_capped_at_the_friction_pybullets_own_contact_gives_the_pair():
+    """load_mjcf_with_msf_floor's default law caps each foot's tangential
+    force at the friction Bullet's contact uses for that (link, floor) pair,
+    the product of their lateralFriction (btManifoldResult::
+    calculateCombinedFriction): loadMJCF reads the MJCF friction (the ant's
+    1.5; the humanoid gives none, Bullet's 0.5), the floor plane 0.5. A
+    number caps every pair at it, None leaves the paper's law uncapped;
+    anything else is refused by name before loading."""
+    c = scenes.new_client(DT["humanoid.xml"], gravity=9.81)
+    try:
+        pair = ContactPair(preset("natural-rubber"), preset("steel"))
+        for bad in (0.0, -1.0, float("nan"), True, "mujoco"):
+            with pytest.raises(ValueError, match=r"mu = .* must be 'engine', a finite number > 0 or None"):
+                load_mjcf_with_msf_floor(c, _path("humanoid.xml"), pair, mu=bad)
+        robots, floor, pairs, _ = load_mjcf_with_msf_floor(c, _path("humanoid.xml"), pair)
+        for p in pairs:
+            f1 = pb.getDynamicsInfo(p.body1[0], p.body1[1], physicsClientId=c)[1]
+            f2 = pb.getDynamicsInfo(floor, -1, physicsClientId=c)[1]
+            assert p.law.mu == f1 * f2
+        assert {p.law.mu for p in pairs} == {0.25}
+        _, _, pairs, _ = load_mjcf_with_msf_floor(c, _path("humanoid.xml"), pair, mu=None)
+        assert {p.law.mu for p in pairs} == {None}
+        _, _, pairs, _ = load_mjcf_with_msf_floor(c, _path("humanoid.xml"), pair, mu=1.0)
+        assert {p.law.mu for p in pairs} == {1.0}
+    finally:
+        pb.disconnect(c)
+
+
+def test_the_twisted_ant_with_pybullets_friction_on_its_feet_is_not_pumped():
+    """The twisted ant above (on its ankle limits at 10 ms, torso turned at
+    5 rad/s against its legs, no torques, 1 s) with the feet's default law:
+    a Coulomb cap at the friction pybullet's own contact gives the pair
+    (load_mjcf_with_msf_floor(mu=ENGINE_FRICTION): 1.5 x 0.5 = 0.75). The
+    feet slip instead of holding the legs with tangential forces many times
+    their normal force, and pybullet's steps take energy out where they
+    pumped the uncapped ant (RestEnergy.engine_added -16.3 J; +52.8 J with
+    no cap), the account falls (696 -> 548 J) and never rises above its
+    running minimum beyond REST_RISE_RTOL of it (measured 0.020 J; 14.9 J
+    with no cap)."""
+    dt = DT["ant.xml"]
+    c = scenes.new_client(dt, gravity=9.81)
+    try:
+        u, ad = _ant_on_its_ankle_limits(c)
+        assert {p.law.mu for p in ad.pairs} == {0.75}
+        ad.step(50)
+        _twist(c, u, 5.0)
+        ad.placed([u])
+        acc = RestEnergy(ad, [u])
+        total = [acc.total]
+        for _ in range(100):
+            ad.step()
+            total.append(acc.update())
+        total = np.array(total)
+        assert acc.engine_added < 0.0
+        assert total[-1] < total[0]
+        assert float(np.max(total - np.minimum.accumulate(total))) <= REST_RISE_RTOL * abs(acc.total)
     finally:
         pb.disconnect(c)
 

@@ -254,9 +254,29 @@ def load_mjcf(client: int, path: str) -> list[int]:
 LIMIT_ERP = 0.0
 
 
+#: ``load_mjcf_with_msf_floor(mu=ENGINE_FRICTION)``: each foot's Coulomb cap
+#: is the friction pybullet's own contact gives the pair (engine_friction).
+ENGINE_FRICTION = "engine"
+#: Bullet's cap on a pair's combined friction (btManifoldResult::calculateCombinedFriction: MAX_FRICTION) [-].
+BULLET_MAX_FRICTION = 10.0
+
+
+def engine_friction(client: int, a: tuple[int, int], b: tuple[int, int]) -> float:
+    """The friction coefficient pybullet's own contact uses between link
+    ``a`` and link ``b`` ((body unique id, link index)): the product of their
+    ``lateralFriction`` clamped to +-BULLET_MAX_FRICTION, as Bullet combines
+    it (btManifoldResult::calculateCombinedFriction). loadMJCF sets a geom's
+    ``lateralFriction`` to its MJCF ``friction``'s first value (the ant's
+    feet 1.5; unset, as in humanoid.xml, Bullet's 0.5), a created plane has
+    0.5: the ant's feet on the floor 0.75, the humanoid's 0.25."""
+    fa = pb.getDynamicsInfo(a[0], a[1], physicsClientId=client)[1]
+    fb = pb.getDynamicsInfo(b[0], b[1], physicsClientId=client)[1]
+    return float(min(max(fa * fb, -BULLET_MAX_FRICTION), BULLET_MAX_FRICTION))
+
+
 def load_mjcf_with_msf_floor(client: int, path: str, pair: ContactPair, *, law: str = "msf",
                              edge_radius: float = DEFAULT_EDGE_RADIUS, limit_erp: float | None = LIMIT_ERP,
-                             **law_options):
+                             mu: float | str | None = ENGINE_FRICTION, **law_options):
     """(robot uids, floor uid, pairs, link_shapes): the model at ``path``
     loaded into ``client`` by ``loadMJCF`` with its joint axes made unit
     (:func:`load_mjcf`), a floor plane (z = 0) added if
@@ -273,9 +293,18 @@ def load_mjcf_with_msf_floor(client: int, path: str, pair: ContactPair, *, law: 
     (:func:`place_joints_in_range`). edge_radius: of box shapes (none in
     these files). limit_erp: the client's non-contact error reduction
     (LIMIT_ERP: none; it also applies to the user's createConstraint
-    constraints; None leaves the client's as it is)."""
+    constraints; None leaves the client's as it is). mu: the feet's Coulomb
+    cap |F_t| <= mu F_n (``make_law(..., mu=)``): ENGINE_FRICTION (default)
+    the friction pybullet's own contact gives each (link, floor) pair
+    (:func:`engine_friction`), a number for every pair, None for no cap (the
+    paper's law: its no-slip Mindlin spring then holds whatever the legs
+    load it with, 5-29 times the normal force on the ant's resting feet,
+    docs/engines.md)."""
     if limit_erp is not None and not 0.0 <= limit_erp <= 1.0:
         raise ValueError(f"limit_erp = {limit_erp!r} must be in [0, 1] or None")
+    if not (mu is None or mu == ENGINE_FRICTION
+            or (isinstance(mu, (int, float)) and not isinstance(mu, bool) and mu > 0 and math.isfinite(mu))):
+        raise ValueError(f"mu = {mu!r} must be {ENGINE_FRICTION!r}, a finite number > 0 or None")
     uids = load_mjcf(client, path)
     if limit_erp is not None:
         pb.setPhysicsEngineParameter(erp=float(limit_erp), physicsClientId=client)
@@ -300,14 +329,18 @@ def load_mjcf_with_msf_floor(client: int, path: str, pair: ContactPair, *, law: 
             shapes = probe_link_shapes(client, u, link)
             if shapes:
                 link_shapes[(u, link)] = shapes
-    laws: dict[float, object] = {}
+    laws: dict[tuple, object] = {}
     pairs = []
     for (u, link), shapes in link_shapes.items():
+        m = engine_friction(client, (u, link), (floor, -1)) if mu == ENGINE_FRICTION else mu
+        if m is not None and not m > 0.0:
+            raise ValueError(f"link {_link_name(client, u, link)!r} (body {u}, link {link}): pybullet's friction "
+                             f"with the floor is {m!r}: give mu > 0 or None")
         for k, s in enumerate(shapes):
             R = float(s.size[0]) if s.kind in ("sphere", "capsule") else min(edge_radius, float(np.min(s.size)))
-            if R not in laws:
-                laws[R] = make_law(law, pair, Curvature.sphere_on_plane(R), **law_options)
-            pairs.append(PairSpec((u, link, k), (floor, -1), laws[R]))
+            if (R, m) not in laws:
+                laws[(R, m)] = make_law(law, pair, Curvature.sphere_on_plane(R), mu=m, **law_options)
+            pairs.append(PairSpec((u, link, k), (floor, -1), laws[(R, m)]))
     if not pairs:
         raise ValueError(f"no shape of {path} collides with the floor: nothing for MSF to do")
     return robots, floor, pairs, link_shapes
@@ -446,5 +479,6 @@ class RestEnergy:
         return self.total
 
 
-__all__ = ["REST_GAIN_RTOL", "RestEnergy", "load_mjcf", "load_mjcf_with_msf_floor", "mechanical_energy",
+__all__ = ["ENGINE_FRICTION", "REST_GAIN_RTOL", "RestEnergy", "engine_friction", "load_mjcf",
+           "load_mjcf_with_msf_floor", "mechanical_energy",
            "motor_torque_limits", "place_joints_in_range", "probe_link_shapes", "unit_joint_axes"]
