@@ -482,13 +482,10 @@ def _as_float(bits):
     return np.array([bits], np.int64).view(np.float64)[0]
 
 
-@njit(cache=True, error_model="numpy")
-def off_image(q_img, qpos, q0, qvel, h, vtol, bad):
-    """Whether any coordinate of qpos is off the step's image q_img (nq,):
-    |q_img - qpos| > vtol h (1 + max |qvel|) + 1e-13 (1 + |q0|), the test of
-    engines.mujoco._stepping.StepTracker for the semi-implicit integrators,
-    in one pass; bad (nq,) bool: which (a NaN anywhere compares False, as
-    numpy's: a NaN in qvel makes every tolerance NaN)."""
+@njit(cache=True, error_model="numpy", inline="always")
+def _image_tol(qvel, h, vtol, v0, copy):
+    """vtol h (1 + max |qvel|), the tolerance of :func:`off_image` (NaN when qvel holds a NaN);
+    with ``copy``, v0 = qvel in the same pass."""
     # max |qvel| as the largest bit pattern of |qvel| (int64 view, sign bit cleared): non-negative
     # doubles order as their bit patterns and a NaN lies above inf, so the integer maximum, which
     # vectorises where a float one may not (NaN), is the float maximum exactly, and above _INF_BITS
@@ -498,10 +495,28 @@ def off_image(q_img, qpos, q0, qvel, h, vtol, bad):
     for i in range(bits.shape[0]):
         b = bits[i] & _ABS_BITS
         m = b if b > m else m
-    tq = vtol * h * (1.0 + _as_float(m)) if m <= _INF_BITS else np.nan
+        if copy:
+            v0[i] = qvel[i]
+    return vtol * h * (1.0 + _as_float(m)) if m <= _INF_BITS else np.nan
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _off_at(q_img, qpos, q0, i, tq):
+    """Whether coordinate i of qpos is off the image (:func:`off_image`'s test)."""
+    return abs(q_img[i] - qpos[i]) > tq + 1e-13 * (1.0 + abs(q0[i]))
+
+
+@njit(cache=True, error_model="numpy")
+def off_image(q_img, qpos, q0, qvel, h, vtol, bad):
+    """Whether any coordinate of qpos is off the step's image q_img (nq,):
+    |q_img - qpos| > vtol h (1 + max |qvel|) + 1e-13 (1 + |q0|), the test of
+    engines.mujoco._stepping.StepTracker for the semi-implicit integrators,
+    in one pass; bad (nq,) bool: which (a NaN anywhere compares False, as
+    numpy's: a NaN in qvel makes every tolerance NaN)."""
+    tq = _image_tol(qvel, h, vtol, qvel, False)
     off = False
     for i in range(qpos.shape[0]):
-        b = abs(q_img[i] - qpos[i]) > tq + 1e-13 * (1.0 + abs(q0[i]))
+        b = _off_at(q_img, qpos, q0, i, tq)
         bad[i] = b
         off |= b
     return off
@@ -510,17 +525,21 @@ def off_image(q_img, qpos, q0, qvel, h, vtol, bad):
 @njit(cache=True, error_model="numpy")
 def off_image_start(q_img, qpos, q0, qvel, v0, h, vtol, bad):
     """:func:`off_image` (its answer and ``bad``), and then the next step's
-    start state taken in the same pass: q0 = q_img = qpos (nq,) (q_img is
-    the base the next image is integrated from) and v0 = qvel (nv,), what
+    start state taken: q0 = q_img = qpos (nq,) (q_img is the base the next
+    image is integrated from) and v0 = qvel (nv,), what
     engines.mujoco._stepping.StepTracker._start copies after the test
-    whatever its answer."""
-    off = off_image(q_img, qpos, q0, qvel, h, vtol, bad)
+    whatever its answer. The copies are made in the test's pass, each
+    coordinate after it was tested (one pass over the arrays instead of
+    three: 6.3 -> 4.3 us at nq = 7,000, nv = 6,000 measured in a loop)."""
+    tq = _image_tol(qvel, h, vtol, v0, True)
+    off = False
     for i in range(qpos.shape[0]):
+        b = _off_at(q_img, qpos, q0, i, tq)
+        bad[i] = b
+        off |= b
         c = qpos[i]
         q0[i] = c
         q_img[i] = c
-    for i in range(qvel.shape[0]):
-        v0[i] = qvel[i]
     return off
 
 

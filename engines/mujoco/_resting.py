@@ -62,13 +62,14 @@ def eligible(ad) -> bool:
 
 
 def _args(ad, factor: float) -> tuple:
-    """resting_step's arguments after the per-call ones: the adapter's, the manager's and the
-    MjData's arrays, which live as long as the adapter, built once (again when the manager's law
-    tables are replaced: ContactManager.set_law); factor: the adapter's CANDIDATE_FACTOR."""
+    """(MjData's qfrc_passive, resting_step's arguments after the per-call ones, its counters):
+    the adapter's, the manager's and the MjData's arrays, which live as long as the adapter, built
+    once (again when the manager's law tables are replaced: ContactManager.set_law); factor: the
+    adapter's CANDIDATE_FACTOR."""
     mgr = ad.manager
     a = ad._rest_args
     if a is not None and a[0] is mgr._kcodes and a[1] is mgr._kLC:
-        return a[2], a[3]
+        return a[2]
     d = ad.data
     k, P = ad._gi.shape[0], len(ad._pairs)
     fk = ad._fk_buffers()
@@ -88,8 +89,8 @@ def _args(ad, factor: float) -> tuple:
         np.zeros(P, np.bool_), mgr.t_onset, SETTLE_AFTER_DURATIONS, STEPS_PER_CONTACT_MIN,
         np.empty(k, np.bool_), np.empty(k, np.bool_), np.empty((2 * k, 3), np.int64), np.empty((2 * k, 3)),
         np.empty((2 * k, 3)))
-    ad._rest_args = (mgr._kcodes, mgr._kLC, args, ints)
-    return args, ints
+    ad._rest_args = (mgr._kcodes, mgr._kLC, (d.qfrc_passive, args, ints))
+    return ad._rest_args[2]
 
 
 def step(ad, factor: float) -> tuple[bool, bool, int]:
@@ -99,19 +100,22 @@ def step(ad, factor: float) -> tuple[bool, bool, int]:
     the general path computes it (applied: and its forces added to qfrc_passive); not done, the
     free group's n candidate rows are in the adapter's kinematics buffers and the general path
     goes on from there. factor: the adapter's CANDIDATE_FACTOR."""
-    d, mgr = ad.data, ad.manager
-    t0 = float(d.time)
-    args, ints = _args(ad, factor)
+    mgr = ad.manager
+    # d.time, which the step tracker read in this hook call (only the hook calls this, after
+    # StepTracker.classify; an MjData field read from Python costs ~1 us in the hook)
+    t0 = ad._tracker.t0
+    qfrc, args, ints = _args(ad, factor)
     k = ad._gi.shape[0]
     # the step's ContactForces arrays, new every step (the manager's are; a caller may keep them)
     force, point, pair = np.empty((k, 3)), np.empty((k, 3)), np.empty(k, np.int64)
     code, n, bad, n_hit, n_unheld, m = resting_step(
-        t0, mgr.dt, mgr.settle_rate, mgr.timing_correction, d.qfrc_passive, force, point, pair, *args)
+        t0, mgr.dt, mgr.settle_rate, mgr.timing_correction, qfrc, force, point, pair, *args)
     if code == BAD_DETECTION:
         ad._detection_failed(bad)
     if code != RESTING:
         return False, False, n
-    force, point, pair = force[:n], point[:n], pair[:n]
+    if n != k:
+        force, point, pair = force[:n], point[:n], pair[:n]
     # what the general path leaves on the adapter and the manager (_compute_rest, ContactManager.step);
     # no link pairs (eligible): _check_deep_onsets has nothing to do. The
     # kinematics of the last resting step are views of the same buffers: kept when n is the same

@@ -842,7 +842,7 @@ class MujocoAdapter(EngineAdapter):
             known.read(kind, self._tracker.stage)
         computed = kind not in ("same", "stage")
         if computed:
-            if float(model.opt.timestep) != self.manager.dt:
+            if self._tracker.h != self.manager.dt:  # model.opt.timestep, read by classify in this call
                 raise RuntimeError(f"model.opt.timestep = {float(model.opt.timestep)!r} s changed after the adapter "
                                    f"was made for dt = {self.manager.dt!r} s: make a new adapter")
             if kind == "jump":
