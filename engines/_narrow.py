@@ -128,14 +128,22 @@ def shape_curvature(shape, pos, rot, point, outward) -> SurfaceCurvature:
     return local.rotated(rot)
 
 
-def contact_curvature(shape1, pose1, shape2, pose2, point, normal) -> Curvature:
+def contact_curvature(shape1, pose1, shape2, pose2, point, normal, x: float = 0.0) -> Curvature:
     """The pair's :class:`~msf_contact.geometry.Curvature` at a contact:
     body 1's surface (outward -normal) and body 2's (outward +normal)
     combined by :func:`msf_contact.curvature.relative_curvature`. pose: (pos
-    (3,), rot (3, 3)); point [m] (3,); normal (3,) from body 2 to body 1."""
+    (3,), rot (3, 3)); point [m] (3,) midway between the surfaces, as the
+    engines give it; normal (3,) from body 2 to body 1; x [m] the approach
+    (negative: a gap). Each shape is asked at its own surface point,
+    ``point -+ x/2 normal``: across a gap of a few millimetres (the detection
+    margin of a falling body) the midpoint is that far from either surface
+    and would pick another feature of a shape with features (a box corner's
+    midpoint read as an edge or a face: MuJoCo's user drop of a box raised
+    "line contact" at t = 0.235 s, pybullet's "two planes touch")."""
     n = np.asarray(normal, dtype=float)
-    s1 = shape_curvature(shape1, *pose1, point, -n)
-    s2 = shape_curvature(shape2, *pose2, point, n)
+    p = np.asarray(point, dtype=float)
+    s1 = shape_curvature(shape1, *pose1, p - 0.5 * x * n, -n)
+    s2 = shape_curvature(shape2, *pose2, p + 0.5 * x * n, n)
     return relative_curvature(s1, s2).curvature
 
 
@@ -218,17 +226,19 @@ class SlotMatcher:
         return out
 
 
-def contact_law(names: tuple, template, bank: "LawBank", shape1, pose1, shape2, pose2, point, normal, t: float):
+def contact_law(names: tuple, template, bank: "LawBank", shape1, pose1, shape2, pose2, point, normal, t: float,
+                x: float = 0.0):
     """The law for a narrow-phase contact about to begin (both engines; a
     curvature per contact point): ``bank.law_for`` the pair's law
     ``template`` and the curvature of both surfaces at the point
     (:func:`contact_curvature`). names: the two geoms' (bodies', links')
-    names for the message; t [s] the engine time. ValueError, naming both
+    names for the message; t [s] the engine time; x [m] the approach at the
+    point (:func:`contact_curvature`). ValueError, naming both
     and what would make it work, for a contact no law here carries (a line
     contact, two flat faces, a concave fit)."""
     a, b = names
     try:
-        curv = contact_curvature(shape1, pose1, shape2, pose2, point, normal)
+        curv = contact_curvature(shape1, pose1, shape2, pose2, point, normal, x)
         return bank.law_for(template, curv, curvature_tolerance(shape1, shape2))
     except ValueError as exc:
         raise ValueError(f"pair ({a!r}, {b!r}) at t = {t:.6g} s: {exc}; the engines have no law for it yet (a "
@@ -692,4 +702,231 @@ class SideLine:
             refresh(self.law[i])
             x = float(ends.x[i])
             per[i] = (x, ends.lowest[i] + 0.5 * x * ends.normal, ends.normal.copy())
+        return per
+
+
+# ------------------------------------------------------------- box on plane ---
+#: A box's 8 corners as signs of its half-extents (3,) each, (8, 3).
+BOX_CORNERS = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)
+
+
+@dataclass(frozen=True)
+class BoxCorners:
+    """The corners of a rounded box against a plane (world frame): x [m]
+    (8,) each corner sphere's approach (negative: a gap); lowest [m] (8, 3)
+    their lowest points; dots (3,) the box axes' components along the
+    plane's unit normal (toward the body) ``normal`` (3,)."""
+
+    x: np.ndarray
+    lowest: np.ndarray
+    dots: np.ndarray
+    normal: np.ndarray
+
+
+def box_corners(shape: Box, pos, rot, plane_pos, plane_normal) -> BoxCorners:
+    """:class:`BoxCorners` of ``shape`` (:class:`msf_contact.shapes.Box`,
+    frame at ``pos`` [m] (3,), ``rot`` (3, 3)) against the plane through
+    ``plane_pos`` [m] (3,) with unit normal ``plane_normal`` (3,): the
+    rounded box is the Minkowski sum of the box of half-extents h - rho and
+    the sphere of the edge radius rho, so each corner is that sphere centred
+    at the inner box's corner, and the box's faces are where the sharp
+    box's are (a face lying flat is at the same height as the engine's)."""
+    n = np.asarray(plane_normal, dtype=float)
+    rot = np.asarray(rot, dtype=float).reshape(3, 3)
+    inner = np.asarray(shape.half_extents, dtype=float) - shape.edge_radius
+    centres = np.asarray(pos, dtype=float)[None, :] + (BOX_CORNERS * inner) @ rot.T
+    lowest = centres - shape.edge_radius * n
+    x = -((lowest - np.asarray(plane_pos, dtype=float)) @ n)
+    return BoxCorners(x, lowest, rot.T @ n, n.copy())
+
+
+def face_toward(half_extents, pos, rot, point) -> tuple[np.ndarray, np.ndarray]:
+    """The face of a box (``half_extents`` [m] (3,), frame at ``pos`` [m]
+    (3,), ``rot`` (3, 3)) that ``point`` [m] (3,) lies furthest outside of,
+    as a plane: (a point on it [m] (3,), its outward unit normal (3,)). A
+    fixed box the other body rests on (pybullet's ``plane.urdf`` is a box
+    200 x 200 x 10 m) acts through its top face; its own edges are not
+    seen (a box over the edge of a fixed box is carried as if the face went
+    on)."""
+    rot = np.asarray(rot, dtype=float).reshape(3, 3)
+    h = np.asarray(half_extents, dtype=float)
+    d = rot.T @ (np.asarray(point, dtype=float) - np.asarray(pos, dtype=float))
+    k = int(np.argmax(np.abs(d) - h))
+    n = rot[:, k] * (1.0 if d[k] >= 0.0 else -1.0)
+    return np.asarray(pos, dtype=float) + h[k] * n, n
+
+
+class BoxOnPlane:
+    """A box with rounded edges (edge radius rho) on a plane, as both
+    adapters carry it (issue 13): its slots are the box's lowest corners,
+    each the end of one rounded edge, and each carries that end's share of
+    the edge's line law (:class:`SideEndLaw` of a capsule of radius rho
+    whose straight part is the edge's, 2 (h - rho), with the corners its end
+    spheres). One law thus covers the three cases with the force continuous
+    between them as the box tilts:
+
+    - on a corner (its edges steeper than the corner's approach reaches:
+      l = 0 in SideEndLaw) a slot's law is the sphere of the edge radius
+      with the msf k_p of (15) exactly (the corner sphere's (13));
+    - on an edge, that edge's two corners carry the line law of the rounded
+      edge, a cylinder of radius rho and the edge's length (SideFootprint),
+      split over its ends as a lying capsule's side is;
+    - on a face, its four corners carry two parallel edges of the face (a
+      flat face is a flat punch, which msf_contact has no law for: the face
+      carries its contact at its rounded edges, as MuJoCo's narrow phase
+      gives a face's contact at its corners). Which two: each corner's edge
+      is the most level of its three, the same pair for the four corners of
+      a face.
+
+    Beyond the edge radius (x > rho(1 - cos tilt)) an end's share grows with
+    the length of its edge below the plane, so a corner hit hard (a rubber
+    cube from 0.3 m at 2.3 m/s) is stopped by its edge where the sphere's
+    force alone vanishes at x = 2 rho (k_p of (15)); such a contact is
+    beyond the small-strain model and its record is flagged.
+
+    A slot keeps its corner, its edge and, while its contact moves (active,
+    not settled), its pose (tilt, rise and onset mass: the reason is
+    :meth:`SideLine.slots`'); a free slot takes the deepest corner no busy
+    slot holds. The corners' geometry is the rounded box's in closed form
+    (:func:`box_corners`), not the engine's points (pybullet lists one point
+    for a face; MuJoCo's are the sharp corners).
+
+    shape: :class:`msf_contact.shapes.Box`; names: the pair's two body (geom,
+    link) names; n_slots: the corners managed (4: a face)."""
+
+    def __init__(self, shape: Box, names: tuple, n_slots: int = 4):
+        if not isinstance(shape, Box):
+            raise ValueError(f"BoxOnPlane needs a msf_contact.shapes.Box, not {type(shape).__name__}")
+        self.shape, self.names, self.n = shape, tuple(names), int(n_slots)
+        h = np.asarray(shape.half_extents, dtype=float)
+        #: each axis' edge: its straight part [m] (3,)
+        self.lengths = 2.0 * (h - shape.edge_radius)
+        #: the corner (0-7) each slot holds (-1: none) and the edge axis of its law (-1: none yet)
+        self.corner = np.full(self.n, -1)
+        self.axis = np.full(self.n, -1)
+        #: the law of each slot's next or current contact (a SideEndLaw of its corner's edge)
+        self.law: list = [None] * self.n
+        self._laws: dict[tuple, SideEndLaw] = {}
+        self.corners: BoxCorners | None = None
+        #: whether the pair's law carries the edges' line law (check); else the corners' spheres
+        self.lines = True
+
+    def _end_law(self, slot: int, axis: int, template) -> SideEndLaw:
+        key = (slot, axis)
+        law = self._laws.get(key)
+        if law is None:
+            rho = self.shape.edge_radius
+            law = self._laws[key] = SideEndLaw(template, rho, rho, max(float(self.lengths[axis]), 0.0), False)
+        return law
+
+    def check(self, template) -> None:
+        """At construction: whether the pair's law ``template`` can carry the
+        box's edges (the line law is the msf law with kp_mode 'msf' and omega
+        not 'paper', SideEndLaw). One that cannot (a 'hertz' law, kp_mode
+        'hertz') leaves the box on its corners, each the sphere of the edge
+        radius with the pair's law (an edge or a face lying flat then rests
+        on two or four such spheres), warned here once."""
+        try:
+            self._end_law(0, 0, template)
+            self.lines = True
+        except ValueError as exc:
+            self.lines = False
+            warnings.warn(f"pair ({self.names[0]!r}, {self.names[1]!r}): a box on a plane carries its contact at "
+                          f"its rounded edges with the msf line law, but {exc}: its corners carry the contact as "
+                          f"spheres of the edge radius {self.shape.edge_radius:g} m with the pair's law instead "
+                          "(an edge or a face lying flat rests on its corners' spheres)", RuntimeWarning,
+                          stacklevel=3)
+
+    def update(self, pos, rot, plane_pos, plane_normal, busy, template, bank: "LawBank") -> np.ndarray:
+        """The corners at the box's pose (``pos`` [m] (3,), ``rot`` (3, 3))
+        against the plane (``plane_pos`` [m] (3,), unit ``plane_normal``
+        (3,)) and each slot's corner: a busy slot (``busy`` (n,) bool: in
+        contact or a correction pending) keeps its corner and edge, the
+        others take the deepest corners left (a slot keeps its corner while
+        it stays among them), each with the most level of its three edges
+        and that edge's end law built from the pair's law ``template`` (a
+        law that cannot carry a line, :meth:`check`: the sphere of the edge
+        radius from ``bank``, LawBank).
+        Returns (n,) bool: the slots whose corner changed (their finite
+        differences compare two material points)."""
+        self.corners = c = box_corners(self.shape, pos, rot, plane_pos, plane_normal)
+        busy = np.asarray(busy, dtype=bool)[:self.n]
+        held = set(int(k) for k in self.corner[busy] if k >= 0)
+        want = [int(k) for k in np.argsort(-c.x, kind="stable") if int(k) not in held][:self.n - len(held)]
+        old = self.corner.copy()
+        for s in range(self.n):
+            if not busy[s] and int(self.corner[s]) not in want:
+                self.corner[s] = -1
+        free = [s for s in range(self.n) if not busy[s] and self.corner[s] < 0]
+        for k in want:
+            if k not in self.corner and free:
+                self.corner[free.pop(0)] = k
+        level = int(np.argmin(np.abs(c.dots)))
+        point = None
+        for s in range(self.n):
+            if not busy[s] and self.corner[s] >= 0:
+                self.axis[s] = level
+                if self.lines:
+                    self.law[s] = self._end_law(s, level, template)
+                else:
+                    if point is None:
+                        point = bank.law_for(template, Curvature.sphere_on_plane(self.shape.edge_radius),
+                                             CURVATURE_RTOL)
+                    self.law[s] = point
+        return self.corner != old
+
+    def _pose(self, s: int) -> tuple[float, float]:
+        """(tilt [rad], rise [-]) of slot s's edge at the current pose."""
+        k, j = int(self.corner[s]), int(self.axis[s])
+        c = self.corners
+        sign = BOX_CORNERS[k, j]
+        rise = float(-sign * c.dots[j])  # from this corner toward the other end of its edge (+: this end lower)
+        return math.asin(min(abs(rise), 1.0)), rise
+
+    def points(self) -> np.ndarray:
+        """The lowest points [m] (n, 3) of the slots' corners (a free slot: its row of corner 0)."""
+        return self.corners.lowest[np.maximum(self.corner, 0)]
+
+    def slots(self, nWn, moving, refresh) -> list:
+        """Per slot (x [m], point [m] (3,) midway between the surfaces, normal
+        (3,)) of its corner, None for a free slot. Each slot's law not in a
+        moving contact (``moving`` (n,) bool: active and not settled) takes
+        the current pose of its edge and its onset mass m / (sum_j beta_j
+        n.W_ij.n / n.W_ii.n): ``nWn`` (n, n) [1/kg] between the slots'
+        lowest points (:meth:`points`), beta_j the share of slot j's force
+        against this one's at the expected depth (SideEndLaw.set_pose's
+        beta, over every corner that can touch with it: a face falling flat
+        has its four corners in one collision, each with a quarter of the
+        mass by symmetry, as the line law with the whole mass needs).
+        ``refresh(law)`` after each change (ContactManager.refresh_law)."""
+        c = self.corners
+        moving = np.asarray(moving, dtype=bool)[:self.n]
+        per = [None] * self.n
+        nWn = np.asarray(nWn, dtype=float)
+        for s in range(self.n):
+            k = int(self.corner[s])
+            if k < 0:
+                continue
+            x = float(c.x[k])
+            per[s] = (x, c.lowest[k] + 0.5 * x * c.normal, c.normal.copy())
+        if not self.lines:  # the corners' sphere laws: no pose
+            return per
+        posed = [s for s in range(self.n) if self.corner[s] >= 0 and not moving[s]]
+        for s in posed:
+            self.law[s].set_pose(*self._pose(s))
+        for s in posed:
+            law = self.law[s]
+            w_own = float(nWn[s, s])
+            if w_own > 0.0:
+                x_e = law._expected_depth(1.0 / w_own)
+                mine = law._width_one(x_e)
+                total = w_own
+                for j in range(self.n):
+                    if j == s or self.corner[j] < 0:
+                        continue
+                    other = self.law[j]._width_one(x_e + float(c.x[self.corner[j]] - c.x[self.corner[s]]))
+                    beta = min(other / mine, 1.0) if mine > 0.0 else 0.0
+                    total += beta * float(nWn[s, j])
+                law.mass_factor = w_own / total if total > 0.0 else 1.0
+            refresh(law)
         return per

@@ -122,7 +122,7 @@ def test_box_corner_is_the_sphere_of_its_edge_radius():
                    v=v, dt=1e-4)
     rows = ad.records
     assert len(rows) == 1  # one corner touched
-    centre = (h * math.sqrt(3) - rho) / math.sqrt(3)
+    centre = h - rho  # the rounded box's corner sphere (engines._narrow.box_corners)
     sph, _ = drop(law, f'<geom name="g" type="sphere" size="{rho}" pos="{centre} {centre} {centre}" mass="0"/>',
                   m, inertia, z, quat=quat, v=v, dt=1e-4)
     ref = simulate_impact(law, Body(STEEL, rho, m, 0.4 * m * rho * rho), Body.half_space(STEEL), v)
@@ -134,12 +134,16 @@ def test_box_corner_is_the_sphere_of_its_edge_radius():
 @pytest.mark.parametrize("euler,corners", [("0 0 0", 4), ("45 0 0", 2)], ids=["face", "edge"])
 def test_box_on_a_face_or_an_edge_gains_no_energy(euler, corners):
     """A steel cube (half-size 10 mm, edge radius 1 mm) at 0.2 m/s on a steel
-    plate on a face (MuJoCo lists 4 corners) or an edge (2): the corners are
-    solved together (engines/_islands.py) and by symmetry each carries an
-    equal share of the mass, so the bounce is the reference impact of the
-    sphere of the edge radius with m/4 or m/2. Measured at dt = 0.1 ms:
-    E_out/E_in = 0.9929 (face), 0.9935 (edge); COR against the reference
-    -1e-7 (face), +3.0e-4 (edge)."""
+    plate on a face (4 corners touch) or an edge (2): each corner carries its
+    end of a rounded edge's line law (engines._narrow.BoxOnPlane), the
+    corners are solved together (engines/_contacts/islands.py), so the
+    bounce is the reference impact of msf_contact's line law of the rounded
+    edge (SideFootprint of the edge radius, the edge's straight length 2 (h -
+    rho)) with the whole mass (an edge) or half of it (a face: two parallel
+    edges). Measured at dt = 0.1 ms: E_out/E_in = 0.9907 (both), COR +7.7e-6
+    from the line law's, the peak forces' sum 1787.42 N (face: 2 x 893.70)
+    and 1265.56 N (edge: 1265.55); the corners as spheres of the edge radius
+    (before) had COR 0.99646 against the line law's 0.99532."""
     h, rho, v, dt = 0.01, 1e-3, 0.2, 1e-4
     m = STEEL.density * (2 * h) ** 3
     law = make_law("msf", ContactPair(STEEL, STEEL), Curvature.sphere_on_plane(rho))
@@ -151,9 +155,12 @@ def test_box_on_a_face_or_an_edge_gains_no_energy(euler, corners):
     ad.step(300)
     assert len(ad.records) == corners
     assert _box_kinetic_energy(ad) < E0
-    share = Body(STEEL, rho, m / corners, 0.4 * m / corners * rho * rho)
-    ref = simulate_impact(law, share, Body.half_space(STEEL), v)
+    line = make_law("msf", ContactPair(STEEL, STEEL), Curvature.side_on_plane(SideFootprint(rho, 2 * (h - rho))))
+    share = Body(STEEL, rho, m * 2 / corners, 0.4 * m * rho * rho)
+    ref = simulate_impact(line, share, Body.half_space(STEEL), v)
     assert rel(data.qvel[2] / v, ref.cor_n) < ACCEPT_RTOL
+    # the corners' peak forces add up to the edges' (spheres of the edge radius: 453 N face, 343 N edge)
+    assert rel(sum(r.F_max for r in ad.records), corners / 2 * ref.F_max) < ACCEPT_RTOL
 
 
 def test_mesh_icosphere_against_the_analytic_sphere():

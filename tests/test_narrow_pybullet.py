@@ -263,7 +263,7 @@ def test_box_corner_is_the_sphere_of_its_edge_radius():
     box, ad = drop(law, dict(kind=pb.GEOM_BOX, halfExtents=[h] * 3), m, inertia, z, orn=orn, v=v, dt=1e-4,
                    edge_radius=rho)
     assert len(ad.records) == 1  # one corner touched
-    centre = (h * math.sqrt(3) - rho) / math.sqrt(3)
+    centre = h - rho  # the rounded box's corner sphere (engines._narrow.box_corners)
     sph, _ = drop(law, dict(kind=pb.GEOM_SPHERE, radius=rho), m, inertia, z, orn=orn, v=v, dt=1e-4,
                   shape_pos=(centre, centre, centre))
     ref = simulate_impact(law, Body(STEEL, rho, m, 0.4 * m * rho * rho), Body.half_space(STEEL), v)
@@ -275,10 +275,13 @@ def test_box_corner_is_the_sphere_of_its_edge_radius():
 @pytest.mark.parametrize("euler,corners", [((0, 0, 0), 4), ((math.pi / 4, 0, 0), 2)], ids=["face", "edge"])
 def test_box_on_a_face_or_an_edge_gains_no_energy(euler, corners):
     """A steel cube (half-size 10 mm, edge radius 1 mm) at 0.2 m/s on a steel
-    plate on a face (4 corners) or an edge (2): the corners are solved
-    together (engines/_contacts/islands.py), each carries an equal share of
-    the mass by symmetry, so the bounce is the reference impact of the
-    sphere of the edge radius with m/4 or m/2."""
+    plate on a face (4 corners touch) or an edge (2): each corner carries its
+    end of a rounded edge's line law (engines._narrow.BoxOnPlane), the
+    corners are solved together (engines/_contacts/islands.py), so the
+    bounce is the reference impact of msf_contact's line law of the rounded
+    edge (SideFootprint of the edge radius, the edge's straight length 2 (h -
+    rho)) with the whole mass (an edge) or half of it (a face: two parallel
+    edges)."""
     h, rho, v, dt = 0.01, 1e-3, 0.2, 1e-4
     m, inertia, orn = _box(h, rho, v, euler=euler)
     law = make_law("msf", ContactPair(STEEL, STEEL), Curvature.sphere_on_plane(rho))
@@ -290,10 +293,14 @@ def test_box_on_a_face_or_an_edge_gains_no_energy(euler, corners):
         ad.step(300)
         assert len(ad.records) == corners
         assert _free_energy(c, u, m, [inertia] * 3) < E0
-        share = Body(STEEL, rho, m / corners, 0.4 * m / corners * rho * rho)
-        ref = simulate_impact(law, share, Body.half_space(STEEL), v)
+        line = make_law("msf", ContactPair(STEEL, STEEL),
+                        Curvature.side_on_plane(SideFootprint(rho, 2 * (h - rho))))
+        share = Body(STEEL, rho, m * 2 / corners, 0.4 * m * rho * rho)
+        ref = simulate_impact(line, share, Body.half_space(STEEL), v)
         vz = pb.getBaseVelocity(u, physicsClientId=c)[0][2]
         assert rel(vz / v, ref.cor_n) < ACCEPT_RTOL
+        # the corners' peak forces add up to the edges' (spheres of the edge radius: 453 N face, 343 N edge)
+        assert rel(sum(r.F_max for r in ad.records), corners / 2 * ref.F_max) < ACCEPT_RTOL
     finally:
         pb.disconnect(c)
 

@@ -221,8 +221,10 @@ class Records:
                                         self._scr_rk4[0])
         else:
             Pc = _pc(law, x_m, {k: np.array([v]) for k, v in onset.items()})
-            Pc_F = (1.5 * self.F_max[p] / float(area(self.x_at_F[p], law.geom, law.kp_mode))
-                    if self.x_at_F[p] > 0 else 0.0)
+            S = float(area(self.x_at_F[p], law.geom, law.kp_mode)) if self.x_at_F[p] > 0 else 0.0
+            # a line footprint's width closes at x = 2R (a box corner driven past it onto its edge, flagged
+            # outside the small-strain range): its area there is 0 and the peak pressure unbounded
+            Pc_F = 1.5 * self.F_max[p] / S if S > 0.0 else (math.inf if self.x_at_F[p] > 0 else 0.0)
         W_el, W_vi = yl[_WEL], yl[_WVI]
         self.W_tq_finished[p] += yl[_WT] - yl[_Q]  # engines._contacts.balance: kept past the contact's end
         # the surface left indented at a force-zero end recovers (state.RECOVERY_DOC)

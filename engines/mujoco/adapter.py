@@ -486,6 +486,8 @@ class MujocoAdapter(EngineAdapter):
         self._narrow_pairs: list = []  # per narrow geom pair: (geom1, geom2, shape1, shape2, SlotMatcher)
         #: per narrow geom pair of a capsule or cylinder on a plane: its line contact (engines._narrow.SideLine)
         self._line: dict = {}
+        #: per narrow geom pair of a box on a plane: its corners and edges (engines._narrow.BoxOnPlane)
+        self._box: dict = {}
         self._pairs = []
         expanded = []
         for i, p in enumerate(pairs):
@@ -723,6 +725,11 @@ class MujocoAdapter(EngineAdapter):
             from engines._narrow import SideLine
 
             self._line[k] = SideLine(shapes[0], (p.body1, p.body2))
+        if t1 == "box" and t2 == "plane":  # its rounded corners and edges (engines._narrow.BoxOnPlane)
+            from engines._narrow import BoxOnPlane
+
+            self._box[k] = BoxOnPlane(shapes[0], (p.body1, p.body2), n_slots)
+            self._box[k].check(p.law)
         return [_Pair(first + s, g1, g2, b1, b2, "narrow", float(m.geom_rbound[g1]), fixed1, fixed2, k, s)
                 for s in range(n_slots)]
 
@@ -1086,6 +1093,9 @@ class MujocoAdapter(EngineAdapter):
             first = next(q.index for q in self._pairs if q.narrow == k)
             rot1 = d.geom_xmat[g1].reshape(3, 3)
             local = (pts - d.geom_xpos[g1]) @ rot1
+            if k in self._box:
+                out.append(self._box_slots(k, first, busy[first:first + match.n]))
+                continue
             if k in self._line and self._line_mode(k, busy[first:first + match.n]) == "line":
                 out.append(self._line_slots(k, match.n))
                 continue
@@ -1180,6 +1190,24 @@ class MujocoAdapter(EngineAdapter):
         mujoco.mj_solveM(m, d, MJ, Jn)
         return st.slots(Jn @ MJ.T, n_slots, self.manager.refresh_law)
 
+    def _box_slots(self, k: int, first: int, busy) -> list:
+        """The slots of narrow geom pair k, a box on a plane, as its corners
+        (engines._narrow.BoxOnPlane.update and slots), their onset masses
+        from MuJoCo's Jacobians and mass matrix."""
+        bx = self._box[k]
+        m, d, mgr = self.model, self.data, self.manager
+        g1, g2 = self._narrow_pairs[k][:2]
+        moving = mgr.active[first:first + bx.n] & ~mgr.settled[first:first + bx.n]
+        bx.update(d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3), d.geom_xpos[g2],
+                  d.geom_xmat[g2].reshape(3, 3)[:, 2], busy, self.pairs[first].law, self.laws)
+        b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
+        ja, jb = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        Jn = np.stack([(self._jacobian(b1, q, ja) - self._jacobian(b2, q, jb)).T @ bx.corners.normal
+                       for q in bx.points()])
+        MJ = np.empty_like(Jn)
+        mujoco.mj_solveM(m, d, MJ, Jn)
+        return bx.slots(Jn @ MJ.T, moving, mgr.refresh_law)
+
     def _narrow_detection(self, p: _Pair) -> Detection:
         """Detection of narrow pair p's slot from MuJoCo's narrow phase; until
         the contact's onset the slot's law follows the curvature at its point
@@ -1199,10 +1227,10 @@ class MujocoAdapter(EngineAdapter):
         det = Detection(np.array([x]), n[None].copy(), point[None].copy(), p1[None], p2[None],
                         np.full((1, 2), math.inf), np.full((1, 2), math.inf))
         if not self.manager.active[p.index]:  # about to touch: the law for the curvature there
-            self._narrow_law(p, point, n)
+            self._narrow_law(p, point, n, x)
         return det
 
-    def _narrow_law(self, p: _Pair, point, n) -> None:
+    def _narrow_law(self, p: _Pair, point, n, x: float = 0.0) -> None:
         """Give narrow pair p's slot the law for the curvature of both surfaces
         at ``point`` (normal ``n``) before its onset (engines._narrow.LawBank:
         the PairSpec's law if it fits, else the same law for this curvature;
@@ -1213,13 +1241,18 @@ class MujocoAdapter(EngineAdapter):
         d = self.data
         g1, g2, s1, s2, _ = self._narrow_pairs[p.narrow]
         spec = self.pairs[p.index]
+        box = self._box.get(p.narrow)
+        if box is not None:  # a box's corner: its edge's end law (engines._narrow.BoxOnPlane)
+            if box.law[p.slot] is not None:
+                self.manager.set_law(p.index, box.law[p.slot])
+            return
         line = self._line.get(p.narrow)
         if line is not None and line.mode == "line":
             self.manager.set_law(p.index, line.law[p.slot])
             return
         law = contact_law((spec.body1, spec.body2), spec.law, self.laws,
                           s1, (d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3)),
-                          s2, (d.geom_xpos[g2], d.geom_xmat[g2].reshape(3, 3)), point, n, float(d.time))
+                          s2, (d.geom_xpos[g2], d.geom_xmat[g2].reshape(3, 3)), point, n, float(d.time), x)
         self.manager.set_law(p.index, law)
 
     def _jacobian(self, body: int, point, out) -> np.ndarray:

@@ -596,8 +596,8 @@ class PybulletAdapter(EngineAdapter):
 
     def _add_narrow(self, i, p: PairSpec, b1, b2, s1: _Shape, s2: _Shape) -> int:
         """Set pair i up for engines.pybullet.narrow; return its number of slots."""
-        from engines._narrow import SideLine, SlotMatcher
-        from msf_contact.shapes import Capsule, Cylinder
+        from engines._narrow import BoxOnPlane, SideLine, SlotMatcher
+        from msf_contact.shapes import Box, Capsule, Cylinder
 
         if s1.kind == "plane":
             raise ValueError(f"pairs[{i}]: body1 = {b1} is a plane; body1 must be the curved body (the normal points "
@@ -609,9 +609,14 @@ class PybulletAdapter(EngineAdapter):
         line = None
         if s2.kind == "plane" and isinstance(geoms[0], (Capsule, Cylinder)):  # a side lying on it: one line
             line = SideLine(geoms[0], (self._body_name(b1), self._body_name(b2)))
+        box = None
+        if isinstance(geoms[0], Box) and (s2.kind == "plane" or (s2.kind == "box" and self._fixed(b2))):
+            # its rounded corners and edges on the plane, or on a fixed box's face (plane.urdf is a box)
+            box = BoxOnPlane(geoms[0], (self._body_name(b1), self._body_name(b2)), n)
+            box.check(p.law)
         self._narrow.append(_narrow.NarrowPair(len(self._bodies), b1, b2, s1, s2, geoms[0], geoms[1],
                                                SlotMatcher(n, s1.extent()), _narrow.pair_method(s1.kind, s2.kind, n),
-                                               line))
+                                               line, box))
         return n
 
     # -- held links (issue 11, item 6) ---------------------------------------
@@ -1161,6 +1166,9 @@ class PybulletAdapter(EngineAdapter):
             j1, j2 = self._slot[i0]
             poses = (bodies.pose(j1), bodies.pose(j2))
             reach = max(self._closing_bound(i0, poses, grav), _narrow.REACH_FLOOR)
+            if np_.box is not None:
+                self._box_points(np_, poses, required)
+                continue
             if np_.line is not None and self._line_points(np_, poses, required):
                 continue
             plane = np_.method == "plane"  # every feature, slots by narrow.assign_plane_slots
@@ -1203,6 +1211,26 @@ class PybulletAdapter(EngineAdapter):
         self._narrow_found[i0:i0 + n] = np_.line.slots(nWn, n, self.manager.refresh_law)
         return True
 
+    def _box_points(self, np_: _narrow.NarrowPair, poses, required) -> None:
+        """A box on a plane or a fixed box's face (engines._narrow.BoxOnPlane,
+        as the MuJoCo adapter): its slots are its lowest rounded corners, put
+        into ``_narrow_found``; a slot given another corner restarts its a_ext."""
+        from engines._narrow import face_toward as _face_toward
+
+        i0, n = np_.first, np_.n
+        c1, R1 = self._world_shape(np_.shape1, poses[0])
+        c2, R2 = self._world_shape(np_.shape2, poses[1])
+        if np_.shape2.kind == "plane":
+            normal = R2 @ (np.asarray(np_.shape2.size, float) / np.linalg.norm(np_.shape2.size))
+        else:  # a fixed box: its face toward the box
+            c2, normal = _face_toward(np_.shape2.size, c2, R2, c1)
+        mgr = self.manager
+        moving = mgr.active[i0:i0 + n] & ~mgr.settled[i0:i0 + n]
+        changed = np_.box.update(c1, R1, c2, normal, required[i0:i0 + n], self.pairs[i0].law, self.laws)
+        self._have_last[i0 + np.flatnonzero(changed)] = False
+        nWn = self._normal_coupling(i0, poses, np_.box.points(), normal)
+        self._narrow_found[i0:i0 + n] = np_.box.slots(nWn, moving, mgr.refresh_law)
+
     def _normal_coupling(self, i, poses, points, normal) -> np.ndarray:
         """n.W_jk.n (k, k) [1/kg] of pair i between its material points
         ``points`` (k, 3) [m] along ``normal`` (3,): the relative normal speed
@@ -1235,7 +1263,7 @@ class PybulletAdapter(EngineAdapter):
         x, point, n = found
         return x, n.copy(), point.copy()
 
-    def _narrow_law(self, i, poses, point, n) -> None:
+    def _narrow_law(self, i, poses, point, n, x: float = 0.0) -> None:
         """Give narrow slot i, a candidate not in contact, the law for the
         curvature at its point (engines._narrow.contact_law: a law per contact
         point; a lying side's ends their share of the line law). Only the
@@ -1246,13 +1274,17 @@ class PybulletAdapter(EngineAdapter):
 
         k, slot = self._narrow_of[i]
         np_ = self._narrow[k]
+        if np_.box is not None:  # a box's corner: its edge's end law (engines._narrow.BoxOnPlane)
+            if np_.box.law[slot] is not None:
+                self.manager.set_law(i, np_.box.law[slot])
+            return
         if np_.line is not None and np_.line.mode == "line":  # its ends' share of the line law
             self.manager.set_law(i, np_.line.law[slot])
             return
         pose1 = self._world_shape(np_.shape1, poses[0])
         pose2 = self._world_shape(np_.shape2, poses[1])
         self.manager.set_law(i, contact_law(self.pair_names[i], self.pairs[i].law, self.laws, np_.geom1, pose1,
-                                            np_.geom2, pose2, point, n, self.time))
+                                            np_.geom2, pose2, point, n, self.time, x))
 
     def _closing_bound(self, i, poses, grav) -> float:
         """A bound on the distance the surfaces of pair i can close within one step [m]."""
@@ -1356,7 +1388,7 @@ class PybulletAdapter(EngineAdapter):
             closing = float(closing_distance(-(v_rel @ nrm), -(a_ext @ nrm), dt, CANDIDATE_FACTOR))
             if x > -(closing + self._push[i]) or required[i]:
                 if self._narrow_of[i][0] >= 0 and not self.manager.active[i]:
-                    self._narrow_law(i, poses, point, nrm)
+                    self._narrow_law(i, poses, point, nrm, x)
                 W, Wc = self._inverse_inertia(i, poses, point)
                 cand.append((i, x, nrm, point, v_rel, v_com_rel, W, Wc, a_ext))
             self._last_v_rel[i] = v_rel

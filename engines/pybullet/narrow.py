@@ -232,6 +232,8 @@ class NarrowPair:
     method: str  # "plane" (features on a plane), "sphere" (a sphere on a capsule/cylinder), "engine"
     #: a capsule's or cylinder's side on a plane: its line contact (engines._narrow.SideLine), else None
     line: object = None
+    #: a box on a plane: its rounded corners and edges (engines._narrow.BoxOnPlane), else None
+    box: object = None
 
     @property
     def n(self) -> int:
