@@ -458,34 +458,15 @@ def test_the_ant_under_rk4_sees_its_drives_in_the_step_they_act():
 STEP_RESPONSE_RTOL = 1e-9
 
 
-@pytest.mark.parametrize("implicit", [True, False])
-def test_the_contacts_inverse_inertia_is_the_euler_steps_response(implicit):
-    """A three-link arm (damping 5 N m s/rad, armature 0.002 kg m^2, dt = 2 ms,
-    Euler) pressed by gravity onto the upper limit of its root hinge: the
-    velocity change that KnownForces.solve gives per unit generalised impulse
-    is MuJoCo's own step's (a small qfrc_applied on each dof in turn, against
-    the step without it) within STEP_RESPONSE_RTOL, with MuJoCo's implicit
-    Euler damping on (its default: the step solves with M + h B) and off.
-    With the damping on, the inverse inertia from M alone (M_eff^-1 with the
-    limit's row, as before issue 13's fix) is off by more than 1 %: 43x on
-    the wrist, whose inertia is below h B (measured)."""
+def _response_per_impulse(model, data):
+    """(KnownForces.solve's velocity change per unit generalised impulse on
+    each dof (nv, nv), mj_step's own (a small qfrc_applied on each dof in
+    turn against the step without it), each row's largest |entry| of the
+    latter, and M_eff^-1 from M alone), the limit's row pressed in ``data``."""
     import copy
 
     from engines.mujoco._known import KnownForces
 
-    xml = ('<mujoco><option timestep="0.002" integrator="Euler"/><default><joint damping="5" armature="0.002"/>'
-           '</default><worldbody><body pos="0 0 1"><joint type="hinge" axis="0 1 0" limited="true" range="0 30"/>'
-           '<geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>'
-           '<body pos="0.3 0 0"><joint type="hinge" axis="0 1 0"/>'
-           '<geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.025" mass="0.5"/>'
-           '<body pos="0.25 0 0"><joint type="hinge" axis="1 0 0"/><geom type="box" size="0.05 0.03 0.02" mass="0.2"/>'
-           '</body></body></body></worldbody></mujoco>')
-    model = mujoco.MjModel.from_xml_string(xml)
-    if not implicit:
-        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
-    data = mujoco.MjData(model)
-    data.qpos[:] = [math.radians(30.5), 0.3, 0.2]  # past the upper limit, where gravity holds it
-    mujoco.mj_forward(model, data)
     known = KnownForces(model, data)
     known.change()
     assert known._Js.shape[0] == 1  # the limit's row is pressed
@@ -501,11 +482,37 @@ def test_the_contacts_inverse_inertia_is_the_euler_steps_response(implicit):
         pushed.qfrc_applied[i] = impulse / h
         mujoco.mj_step(model, pushed)
         engine[i] = (pushed.qvel - data.qvel - dv0) / impulse
-    scale = np.abs(engine).max(axis=1)
-    assert np.all(np.abs(X - engine).max(axis=1) < STEP_RESPONSE_RTOL * scale)
     Minv = np.zeros((nv, nv))
     mujoco.mj_solveM(model, data, Minv, np.eye(nv))
-    with_m = Minv - known._G.T @ known._Ainv @ known._G  # M_eff^-1 from M alone
+    return X, engine, np.abs(engine).max(axis=1), Minv - known._G.T @ known._Ainv @ known._G
+
+
+@pytest.mark.parametrize("implicit", [True, False])
+def test_the_contacts_inverse_inertia_is_the_euler_steps_response(implicit):
+    """A three-link arm (damping 5 N m s/rad, armature 0.002 kg m^2, dt = 2 ms,
+    Euler) pressed by gravity onto the upper limit of its root hinge: the
+    velocity change that KnownForces.solve gives per unit generalised impulse
+    is MuJoCo's own step's (a small qfrc_applied on each dof in turn, against
+    the step without it) within STEP_RESPONSE_RTOL, with MuJoCo's implicit
+    Euler damping on (its default: the step solves with M + h B) and off.
+    With the damping on, the inverse inertia from M alone (M_eff^-1 with the
+    limit's row, as before issue 13's fix) is off by more than 1 %: 43x on
+    the wrist, whose inertia is below h B (measured)."""
+    xml = ('<mujoco><option timestep="0.002" integrator="Euler"/><default><joint damping="5" armature="0.002"/>'
+           '</default><worldbody><body pos="0 0 1"><joint type="hinge" axis="0 1 0" limited="true" range="0 30"/>'
+           '<geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>'
+           '<body pos="0.3 0 0"><joint type="hinge" axis="0 1 0"/>'
+           '<geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.025" mass="0.5"/>'
+           '<body pos="0.25 0 0"><joint type="hinge" axis="1 0 0"/><geom type="box" size="0.05 0.03 0.02" mass="0.2"/>'
+           '</body></body></body></worldbody></mujoco>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    if not implicit:
+        model.opt.disableflags |= int(mujoco.mjtDisableBit.mjDSBL_EULERDAMP)
+    data = mujoco.MjData(model)
+    data.qpos[:] = [math.radians(30.5), 0.3, 0.2]  # past the upper limit, where gravity holds it
+    mujoco.mj_forward(model, data)
+    X, engine, scale, with_m = _response_per_impulse(model, data)
+    assert np.all(np.abs(X - engine).max(axis=1) < STEP_RESPONSE_RTOL * scale)
     off = np.abs(with_m - engine).max(axis=1) / scale
     assert (off.max() > 1e-2) == implicit, off
 
@@ -519,3 +526,36 @@ def test_the_ant_under_torque_seed_4_gains_no_energy_at_rest():
     response when the active rows change). No rest step above the bound."""
     _, _, _, account, _, _ = _at_rest("ant.xml", 4, 1000, 120)
     assert account.gains == []
+
+
+@pytest.mark.parametrize("integrator", ["implicitfast", "implicit"])
+def test_the_contacts_inverse_inertia_is_the_implicit_steps_response(integrator):
+    """The arm of the test above under MuJoCo's implicit integrators, moving
+    (qvel 0.5-2 rad/s: the Coriolis derivative of ``implicit``), with a
+    velocity servo (kv 3 N m s/rad) on the root, a position servo with kv
+    (2 N m s/rad) on the elbow and a damped fixed tendon (4 N m s/rad) over
+    both: the step solves (M - h D) qacc = f (engines.mujoco._known,
+    StepResponse), and the velocity change KnownForces.solve gives per unit
+    generalised impulse is mj_step's within STEP_RESPONSE_RTOL, the limit's
+    row pressed. The inverse inertia from M alone (before: no derivative
+    under these integrators) is more than 1 % off."""
+    xml = (f'<mujoco><option timestep="0.002" integrator="{integrator}"/><default><joint damping="5" '
+           'armature="0.002"/></default><worldbody><body pos="0 0 1">'
+           '<joint name="root" type="hinge" axis="0 1 0" limited="true" range="0 30"/>'
+           '<geom type="capsule" fromto="0 0 0 0.3 0 0" size="0.03" mass="1"/>'
+           '<body pos="0.3 0 0"><joint name="elbow" type="hinge" axis="0 1 0"/>'
+           '<geom type="capsule" fromto="0 0 0 0.25 0 0" size="0.025" mass="0.5"/>'
+           '<body pos="0.25 0 0"><joint type="hinge" axis="1 0 0"/><geom type="box" size="0.05 0.03 0.02" mass="0.2"/>'
+           '</body></body></body></worldbody>'
+           '<tendon><fixed name="t" damping="4"><joint joint="root" coef="1"/><joint joint="elbow" coef="0.5"/>'
+           '</fixed></tendon><actuator><velocity joint="root" kv="3"/><position joint="elbow" kp="40" kv="2"/>'
+           '</actuator></mujoco>')
+    model = mujoco.MjModel.from_xml_string(xml)
+    data = mujoco.MjData(model)
+    data.qpos[:] = [math.radians(30.5), 0.3, 0.2]  # past the upper limit, where gravity holds it
+    data.qvel[:] = [0.5, -1.0, 2.0]
+    data.ctrl[:] = [0.2, 0.1]
+    mujoco.mj_forward(model, data)
+    X, engine, scale, with_m = _response_per_impulse(model, data)
+    assert np.all(np.abs(X - engine).max(axis=1) < STEP_RESPONSE_RTOL * scale), np.abs(X - engine).max(axis=1) / scale
+    assert (np.abs(with_m - engine).max(axis=1) / scale).max() > 1e-2

@@ -72,9 +72,20 @@ couplings, the impulses' velocity change, the known forces' change) is
 followed by S = (M + h B)^-1 M (:func:`damped_response`). gymnasium's
 HalfCheetah (B = 1.5-6 N m s on its legs, 10 ms): with M^-1 alone each
 impulse was predicted to change its foot's velocity 6-9 % more than the step
-did (tests/test_gymnasium_cheetah.py). Not done: the implicit and
-implicitfast integrators' own M - h dQ/dv, and the free bodies' pairs
-(no KnownForces there: a damped free joint is read with M^-1).
+did (tests/test_gymnasium_cheetah.py). The implicit integrators solve
+(M - h D) qacc = qfrc_smooth + qfrc_constraint with D = d qfrc_smooth / d qvel
+(``mj_implicitSkip``, MuJoCo's documentation, Computation, "Numerical
+integration"): implicitfast with D's joint and tendon damping and actuator
+gain and bias derivatives, read as the symmetric matrix of its lower
+triangle (``mj_factorI``), implicit with the Coriolis and centripetal (RNE)
+derivatives as well (LU). S is then (M - h D)^-1 M, D read from ``qDeriv``
+after ``mj_implicit`` on a private copy of the step's state
+(:class:`StepResponse`): W equals mj_step's velocity change per impulse to
+rounding (tests/test_robots_mujoco.py, implicit and implicitfast). Not
+reproduced: implicitfast's local 6x6 solve of a standalone free body with
+its gyroscopic derivative (``mjd_freeMhat``; its rows are M - h D here), and
+the free bodies' pairs (no KnownForces there: a damped free joint is read
+with M^-1).
 
 What the last step's a_ext holds of them: under Euler, implicit and
 implicitfast the forces of its one forward pass; under RK4 the tableau's
@@ -106,6 +117,8 @@ from engines.mujoco._stepping import RK4_B
 
 _RK4 = int(mujoco.mjtIntegrator.mjINT_RK4)
 _EULER = int(mujoco.mjtIntegrator.mjINT_EULER)
+_IMPLICIT = int(mujoco.mjtIntegrator.mjINT_IMPLICIT)
+_IMPLICITFAST = int(mujoco.mjtIntegrator.mjINT_IMPLICITFAST)
 
 
 def euler_damping(model: mujoco.MjModel) -> np.ndarray | None:
@@ -127,17 +140,84 @@ def euler_damping(model: mujoco.MjModel) -> np.ndarray | None:
     return float(model.opt.timestep) * B
 
 
-def damped_response(model: mujoco.MjModel, data: mujoco.MjData) -> np.ndarray | None:
-    """S = (M + h B)^-1 M (nv, nv) at ``data``'s mass matrix (``mj_makeM``
-    done), the map from MuJoCo's acceleration to Euler's velocity change per
-    h (:func:`euler_damping`); None when the step takes no damping
-    implicitly (S = I)."""
-    hB = euler_damping(model)
-    if hB is None:
-        return None
-    M = np.zeros((model.nv, model.nv))
-    mujoco.mj_fullM(model, data, M)
-    return np.linalg.solve(M + np.diag(hB), M)
+def damped_response(model: mujoco.MjModel, data: mujoco.MjData, source: mujoco.MjData | None = None
+                    ) -> np.ndarray | None:
+    """S = A^-1 M (nv, nv), the map from MuJoCo's acceleration M^-1 f to the
+    step's velocity change per h, A the matrix ``mj_step`` solves its
+    velocity change with (:class:`StepResponse`); None when A is M (S = I).
+    ``data``: its mass matrix is this state's (``mj_makeM`` done; Euler
+    reads M there); ``source``: the MjData whose state (qpos, qvel, act,
+    ctrl, applied forces) the implicit integrators' D is taken at (default
+    ``data``). A private StepResponse per call: a caller stepping often keeps one."""
+    return StepResponse(model)(data, source)
+
+
+class StepResponse:
+    """The matrix A [kg m^2 or kg] (nv, nv) with which ``mj_step`` turns the
+    generalised forces into its velocity change, v' = v + h A^-1 (f + Q_c)
+    (module docstring), and S = A^-1 M: Euler with implicit damping
+    A = M + h diag(B) (:func:`euler_damping`); implicitfast A = M - h D, D
+    read by ``mj_factorI`` from its lower triangle (symmetric); implicit
+    A = M - h D (D with the RNE derivative, not symmetric); RK4, or Euler
+    without damping, A = M (None). D is ``qDeriv`` after ``mj_implicit`` on a
+    private MjData holding the step's state (``mj_fwdPosition`` and
+    ``mj_fwdVelocity`` first: the derivatives read the actuators' moments,
+    the tendons and the bodies' velocities there), in MuJoCo's sparse
+    layout (``D_rownnz``, ``D_rowadr``, ``D_colind``)."""
+
+    def __init__(self, model: mujoco.MjModel):
+        self.model = model
+        self._scratch: mujoco.MjData | None = None
+        self._state = None
+        rownnz, rowadr = np.asarray(model.D_rownnz), np.asarray(model.D_rowadr)
+        idx = np.concatenate([np.arange(a, a + n) for a, n in zip(rowadr.tolist(), rownnz.tolist())]
+                             ) if model.nv else np.zeros(0, int)
+        self._rows = np.repeat(np.arange(model.nv), rownnz)
+        self._idx = idx.astype(int)
+        self._cols = np.asarray(model.D_colind)[self._idx]
+
+    def implicit(self) -> bool:
+        return int(self.model.opt.integrator) in (_IMPLICIT, _IMPLICITFAST)
+
+    def matrix(self, data: mujoco.MjData, source: mujoco.MjData | None = None) -> tuple[np.ndarray, np.ndarray] | None:
+        """(A, M) (nv, nv) each at ``source``'s state (Euler: ``data``'s M), or None when A = M."""
+        m = self.model
+        if not self.implicit():
+            hB = euler_damping(m)
+            if hB is None:
+                return None
+            M = np.zeros((m.nv, m.nv))
+            mujoco.mj_fullM(m, data, M)
+            return M + np.diag(hB), M
+        src = data if source is None else source
+        if self._scratch is None:
+            self._scratch = mujoco.MjData(m)
+            self._spec = mujoco.mjtState.mjSTATE_INTEGRATION
+            self._state = np.empty(mujoco.mj_stateSize(m, self._spec))
+        s = self._scratch
+        mujoco.mj_getState(m, src, self._state, self._spec)
+        mujoco.mj_setState(m, s, self._state, self._spec)
+        mujoco.mj_fwdPosition(m, s)  # the moments, tendons, M; then the velocities (no control callback, no solve)
+        mujoco.mj_fwdVelocity(m, s)
+        M = np.zeros((m.nv, m.nv))
+        mujoco.mj_fullM(m, s, M)
+        mujoco.mj_implicit(m, s)  # fills qDeriv at this state (and advances the scratch: not used)
+        D = np.zeros((m.nv, m.nv))
+        D[self._rows, self._cols] = s.qDeriv[self._idx]
+        A = M - float(m.opt.timestep) * D
+        if int(m.opt.integrator) == _IMPLICITFAST:  # mj_factorI reads the lower triangle as a symmetric matrix
+            A = np.tril(A) + np.tril(A, -1).T
+        return A, M
+
+    def __call__(self, data: mujoco.MjData, source: mujoco.MjData | None = None) -> np.ndarray | None:
+        """S = A^-1 M (nv, nv), or None when A = M (see :func:`damped_response`)."""
+        AM = self.matrix(data, source)
+        if AM is None:
+            return None
+        A, M = AM
+        return np.linalg.solve(A, M)
+
+
 _QUADRATIC = int(mujoco.mjtConstraintState.mjCNSTRSTATE_QUADRATIC)
 
 
@@ -172,7 +252,8 @@ class KnownForces:
         self._Js = self._G = np.zeros((0, nv))
         self._Ainv = np.zeros((0, 0))
         self._old = (self._Js, self._Ainv, self._G)  # the last step's rows (held_change)
-        self._S: np.ndarray | None = None  # Euler's implicit damping (damped_response) at this step, or None
+        self._S: np.ndarray | None = None  # the step's A^-1 M (StepResponse) at this step, or None (A = M)
+        self._step_response = StepResponse(model)
 
     def read(self, kind: str, stage: int) -> None:
         """At every hook call: the previous stage's actuator and constraint
@@ -234,7 +315,7 @@ class KnownForces:
         """S M^-1 (r_now(Q) - r_last(Q)) [(nv,)]: how the change of the active
         rows since the last step changes the velocity a held force's
         generalised force Q (nv,) gives a step, per h (r: the rows' response,
-        :meth:`_response`; S: Euler's implicit damping). :meth:`change` holds
+        :meth:`_response`; S: the step's A^-1 M, :class:`StepResponse`). :meth:`change` holds
         it for every held force (their share of the last step's a_ext was the
         old rows'); a held pair's own force, which left its own a_ext, takes
         it back out with this."""
@@ -300,7 +381,7 @@ class KnownForces:
         mujoco.mj_solveM(self.model, self.data, out, rows)
         if self._Js.shape[0]:
             out -= ((out @ self._Js.T) @ self._Ainv) @ self._G
-        if self._S is not None:  # Euler's implicit damping: the velocity change is S times MuJoCo's
+        if self._S is not None:  # implicit damping / derivatives: the velocity change is S times M^-1's
             out[:] = out @ self._S.T
 
     def change(self) -> np.ndarray | None:
@@ -310,7 +391,7 @@ class KnownForces:
         this step's actuator forces in ``data`` (mj_fwdActuation) and fixes
         the active constraint rows (:meth:`constraint_now`)."""
         m, d = self.model, self.data
-        self._S = damped_response(m, d)
+        self._S = self._step_response(d)
         user = self.user_now()
         last, self._user = self._last, user
         if m.nu:
@@ -327,7 +408,7 @@ class KnownForces:
         return self._dq[0].copy()
 
     def solve_free(self, out: np.ndarray, rows: np.ndarray) -> None:
-        """out = rows M^-1, with Euler's implicit damping (:func:`damped_response`) but
+        """out = rows M^-1, with the step's S (:class:`StepResponse`: implicit damping and derivatives) but
         without the constraint rows' response (the known forces' own change is solved so)."""
         mujoco.mj_solveM(self.model, self.data, out, rows)
         if self._S is not None:

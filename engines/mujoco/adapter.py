@@ -123,7 +123,7 @@ from engines.base import (
     check_law_curvature,
 )
 from engines.mujoco import _held, _resting
-from engines.mujoco._known import KnownForces, damped_response
+from engines.mujoco._known import KnownForces, StepResponse
 from engines.mujoco._stepping import StepTracker
 from msf_contact._validate import ValidityWarning
 
@@ -1834,7 +1834,10 @@ class MujocoAdapter(EngineAdapter):
                     Q += sign * (jac.T @ self.manager.J[i])
         dq = np.zeros((1, m.nv))
         mujoco.mj_solveM(m, s, dq, Q.reshape(1, -1))
-        S = damped_response(m, s)  # MuJoCo's Euler applied the correction with its implicit damping
+        if getattr(self, "_step_response", None) is None:
+            self._step_response = StepResponse(m)
+        # the step applied the correction through its own A (Euler's implicit damping, the implicit integrators' D)
+        S = self._step_response(s, self.data)
         return dq[0] if S is None else S @ dq[0]
 
     def _angular_velocity(self, body: int) -> np.ndarray:
