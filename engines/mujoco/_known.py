@@ -19,14 +19,25 @@ then ``mjcb_control``, ``mj_fwdActuation``, ``mj_fwdAcceleration``,
   inputs, same result);
 - the joint and tendon springs and gravity compensation (``qfrc_spring``,
   ``qfrc_gravcomp``: computed by ``mj_passive`` before the hook, so this
-  step's are read there). Only these position-dependent passive forces: the
-  damping and the bias force change with the contacts' own impulses inside
-  the step and would feed back (with the whole ``qfrc_passive`` and
-  ``qfrc_bias`` the RK4 ant chattered at rest, ~1e-4 J every third step).
-  gymnasium's HalfCheetah stands on leg springs of 60-240 N m/rad: held a
-  step late, its feet's contacts predicted less motion than the engine
-  made and its rest account rose in its slow rocking (docs/engines.md,
-  gymnasium's walkers);
+  step's are read there). gymnasium's HalfCheetah stands on leg springs of
+  60-240 N m/rad: held a step late, its feet's contacts predicted less
+  motion than the engine made and its rest account rose in its slow
+  rocking (docs/engines.md, gymnasium's walkers);
+- the joints' and tendons' damping force ``qfrc_damper`` = -B v (also
+  computed by ``mj_passive`` before the hook) under Euler, implicit and
+  implicitfast: their step applies it at the step start's velocities
+  whole, its answer to the step's own impulses being the implicit part, S
+  below. Held a step late it changed by -B (v_k - v_k-1) unseen: a humanoid
+  rocking on its limbs at rest (joint damping 1-5 N m s/rad, kinetic energy
+  ~5e-6 J, period ~35 steps of 2 ms) had its contacts' internal approach
+  move 1-3 % more or less than the engine's, in phase with the rocking, and
+  RestEnergy's account rose above its bound in 60 rest steps (seed 2 of
+  benchmarks.robots.rest_sweep, up to 4.7 uJ) and 15 (seed 13) (issue 13).
+  Not under RK4, whose stages' damping follows the stages' velocities, which
+  carry the contacts' impulses: with the whole ``qfrc_passive`` and
+  ``qfrc_bias`` the RK4 ant chattered at rest, ~1e-4 J every third step.
+  The bias force (gravity's generalised force and the Coriolis terms) stays
+  in a_ext's finite difference, a step late;
 - the user's ``qfrc_applied`` and ``xfrc_applied`` (set before ``mj_step``;
   an ``xfrc_applied`` row acts at its body's centre of mass, ``xipos``, as
   MuJoCo's ``mj_xfrcAccumulate``);
@@ -235,9 +246,13 @@ class KnownForces:
         #: (4, nv) (stage j read at the call after it; stage 3 / Euler's only stage at the next step)
         self.constraint = np.zeros((4, nv))
         self.actuator = np.zeros((4, nv))
-        #: the position-dependent passive forces (joint and tendon springs, gravity compensation) of each
-        #: stage [N or N m] (4, nv), read at the stage's own hook call (mj_passive has computed them)
+        #: the known passive forces (joint and tendon springs, gravity compensation; the damping but
+        #: under RK4) of each stage [N or N m] (4, nv), read at the stage's own hook call (mj_passive
+        #: has computed them)
         self.passive = np.zeros((4, nv))
+        #: qfrc_damper is a known force (Euler, implicit, implicitfast: module docstring); read at each
+        #: call, as a user may switch the integrator between steps
+        self._damper = False
         #: the efc_type values of each stage's constraint rows (RestEnergy's account)
         self.row_types: list[frozenset] = [frozenset()] * 4
         self._types = frozenset()  # the current call's rows
@@ -262,6 +277,7 @@ class KnownForces:
         count after classifying this call (RK4: 1..3 for "stage")."""
         d = self.data
         rk4 = int(self.model.opt.integrator) == _RK4
+        self._damper = not rk4
         if kind == "stage":
             self._take(stage - 1)
             self._springs(stage)
@@ -286,8 +302,12 @@ class KnownForces:
         self.row_types[j] = self._types
 
     def _springs(self, j: int) -> None:
+        """The passive forces known at this hook call into passive[j]: springs, gravity
+        compensation and, but under RK4, the damping (module docstring)."""
         d = self.data
         np.add(d.qfrc_spring, d.qfrc_gravcomp, out=self.passive[j])
+        if self._damper:
+            self.passive[j] += d.qfrc_damper
 
     def applied(self, before: np.ndarray, unheld: np.ndarray | None) -> None:
         """The managed contacts' generalised force of this step: ``qfrc_passive``
