@@ -93,7 +93,10 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *
             else:
                 pb.setJointMotorControlArray(uid, joints, pb.TORQUE_CONTROL, forces=tau.tolist(), physicsClientId=c)
             step()
-        out = {"step_s": (time.perf_counter() - t) / steps,
+        wall = time.perf_counter() - t
+        if msf:  # the limit trial's share of the MSF step under the torques (PybulletAdapter.limit_trial_s)
+            trial_s = adapter.limit_trial_s
+        out = {"step_s": wall / steps,
                "base_height_m": float(pb.getBasePositionAndOrientation(uid, physicsClientId=c)[0][2])}
         pb.setJointMotorControlArray(uid, joints, pb.TORQUE_CONTROL, forces=[0.0] * len(joints), physicsClientId=c)
         acc = RestEnergy(adapter, robots) if msf else None
@@ -117,6 +120,7 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *
                        rest_largest_gain_J=max((g[1] for g in acc.gains), default=0.0),
                        rest_largest_contact_gain_J=max((g[1] for g in acc.contact_gains), default=0.0))
         if adapter is not None:
+            out["limit_trial_share"] = trial_s / wall
             out.update(records=len(adapter.records), managed_contacts=len(adapter.pairs), jumps=adapter.jumps,
                        outside_validity=sum(bool(r.outside_validity) for r in adapter.records))
         return out
@@ -150,7 +154,8 @@ def _describe(r: dict) -> list[str]:
             f"(mechanical {r['msf_rest_mechanical_J']:.1f} J at the end), pybullet added "
             f"{r['msf_rest_engine_added_J']:.3g} J beyond the MSF loads' work, contacts' own balance rise "
             f"{r['msf_rest_contacts_rise_J']:.3g} J; steps above the bound {r['msf_rest_gain_steps']} "
-            f"(contacts' {r['msf_rest_contact_gain_steps']}) of {r.get('rest_steps', '?')}"]
+            f"(contacts' {r['msf_rest_contact_gain_steps']}, the largest {r['msf_rest_largest_contact_gain_J']:.3g} J) "
+            f"of {r.get('rest_steps', '?')}; the limit trial ~{100 * r['msf_limit_trial_share']:.0f} % of the MSF step"]
 
 
 def run(quick: bool = False) -> list[dict]:

@@ -3,6 +3,7 @@ docs/engines.md quotes (issue 13):
 
     .venv/bin/python scripts/pybullet_robots.py dumbbell     # two links on a hinge resting, 1 and 0.2 ms
     .venv/bin/python scripts/pybullet_robots.py ant          # ant.xml resting on its feet, 10, 1 and 0.2 ms
+    .venv/bin/python scripts/pybullet_robots.py feet         # ant.xml put down on its feet, the account, 10 ms
     .venv/bin/python scripts/pybullet_robots.py twist        # ant.xml on its ankle limits, twisted, 10, 5, 2.5 ms
     .venv/bin/python scripts/pybullet_robots.py seeds        # the robots_pybullet benchmark's ant, seeds 13, 1, 2, 3, 4
     .venv/bin/python scripts/pybullet_robots.py landing      # ant.xml put down on its ankle limits, 0.3 s at 10 ms
@@ -104,6 +105,25 @@ def ant(dt: float, seconds: float) -> str:
         pb.disconnect(c)
 
 
+def feet(dt: float, seconds: float) -> str:
+    """ant.xml put down on its feet 0.5 mm above the floor (as ``ant``), no
+    torques, with the RestEnergy account: with the feet capped (the default)
+    its legs splay and it drops onto its ankle limits."""
+    c = scenes.new_client(dt, gravity=9.81)
+    try:
+        robots, floor, pairs, shapes = load_mjcf_with_msf_floor(
+            c, os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml"), PAIR, mu=MU)
+        u = robots[0]
+        gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
+        pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
+        pb.resetBasePositionAndOrientation(u, [pos[0], pos[1], pos[2] - gap + 5e-4], orn, physicsClientId=c)
+        ad = PybulletAdapter(c, pairs, link_shapes=shapes, limit_trial=TRIAL)
+        return f"ant put down on its feet, dt {dt:g} s, {seconds:g} s, mu {MU}, trial {TRIAL}: " + _run(ad, robots, dt,
+                                                                                                        seconds)
+    finally:
+        pb.disconnect(c)
+
+
 def _on_ankle_limits(c):
     """ant.xml in client c with its ankles on their limits, put down 0.5 mm
     above the floor, and its adapter: (robots, adapter)."""
@@ -195,7 +215,7 @@ def seeds(tell: bool, mu, model: str = "ant.xml") -> list[str]:
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("case", choices=("dumbbell", "ant", "twist", "seeds", "landing"))
+    ap.add_argument("case", choices=("dumbbell", "ant", "feet", "twist", "seeds", "landing"))
     ap.add_argument("--no-trial", action="store_true", help="adapters without limit_trial")
     ap.add_argument("--late", action="store_true", help="seeds: also with the torques set through pybullet's call")
     ap.add_argument("--mu", default="engine",
@@ -212,6 +232,8 @@ if __name__ == "__main__":
     elif args.case == "seeds":
         for tell in (True, False) if args.late else (True,):
             print("\n".join(seeds(tell, MU, args.model)))
+    elif args.case == "feet":
+        print(feet(1e-2, 1.0))
     elif args.case == "landing":
         print(landing(1e-2, 0.3))
     elif args.case == "twist":

@@ -740,3 +740,53 @@ def test_bad_robot_inputs_are_refused_before_loading(tmp_path):
         assert pb.getNumBodies(physicsClientId=c) == 0  # refused before anything was loaded
     finally:
         pb.disconnect(c)
+
+
+@pytest.mark.parametrize("how", ["torque", "force"])
+def test_the_limit_trial_consumes_what_pybullets_own_calls_set_before_step(how):
+    """Why PybulletAdapter(limit_trial=True) is not the default: pybullet
+    applies a TORQUE_CONTROL torque and an applyExternalForce force for one
+    stepSimulation and cannot report them (getJointState's applied motor
+    torque reads 0 under TORQUE_CONTROL; there is no getter of external
+    forces) nor keep them over saveState/restoreState, so the trial's
+    stepSimulation uses them up and the real step goes without: a torque
+    (1 N m) or a force (1 N) set with pybullet's own call before step moves
+    the dumbbell in the air without the trial and not at all with it. A
+    torque told through set_joint_torques acts with the trial too."""
+    from msf_contact import Curvature, make_law
+    from engines.base import PairSpec
+
+    moved = {}
+    for trial in (False, True):
+        c = scenes.new_client(1e-2, gravity=0.0)
+        try:
+            plane = scenes.add_plate(c)
+            s = pb.createCollisionShape(pb.GEOM_SPHERE, radius=0.02, physicsClientId=c)
+            u = pb.createMultiBody(1.0, s, basePosition=[0, 0, 0.5], linkMasses=[1.0],
+                                   linkCollisionShapeIndices=[s], linkVisualShapeIndices=[-1],
+                                   linkPositions=[[0.2, 0, 0]], linkOrientations=[[0, 0, 0, 1]],
+                                   linkInertialFramePositions=[[0, 0, 0]],
+                                   linkInertialFrameOrientations=[[0, 0, 0, 1]], linkParentIndices=[0],
+                                   linkJointTypes=[pb.JOINT_REVOLUTE], linkJointAxis=[[0, 1, 0]],
+                                   physicsClientId=c)
+            pb.setJointMotorControl2(u, 0, pb.VELOCITY_CONTROL, force=0, physicsClientId=c)
+            law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")),
+                           Curvature.sphere_on_plane(0.02))
+            ad = PybulletAdapter(c, [PairSpec((u, -1), (plane, -1), law), PairSpec((u, 0), (plane, -1), law)],
+                                 limit_trial=trial)
+            if how == "torque":
+                pb.setJointMotorControl2(u, 0, pb.TORQUE_CONTROL, force=1.0, physicsClientId=c)
+            else:
+                pb.applyExternalForce(u, -1, [1.0, 0, 0], [0, 0, 0.5], pb.WORLD_FRAME, physicsClientId=c)
+            ad.step()
+            moved[trial] = (abs(pb.getJointState(u, 0, physicsClientId=c)[1]) if how == "torque"
+                            else abs(pb.getBaseVelocity(u, physicsClientId=c)[0][0]))
+            assert ad.limit_trials == int(trial)
+            if how == "torque":  # told to the adapter: set again after the trial
+                ad.set_joint_torques(u, [0], [1.0])
+                w = pb.getJointState(u, 0, physicsClientId=c)[1]
+                ad.step()
+                assert abs(pb.getJointState(u, 0, physicsClientId=c)[1] - w) > 0.5 * moved[False]
+        finally:
+            pb.disconnect(c)
+    assert moved[False] > 1e-3 and moved[True] == 0.0

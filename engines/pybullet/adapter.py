@@ -70,6 +70,7 @@ from __future__ import annotations
 
 import gc
 import math
+import time
 import warnings
 from dataclasses import dataclass
 from itertools import chain, repeat
@@ -267,6 +268,7 @@ class PybulletAdapter(EngineAdapter):
         #: which joint limits hold a multibody found by a trial step (_limit_trial), not by the joints' positions
         self.limit_trial = limit_trial
         self.limit_trials = 0  #: trial steps taken (_limit_trial)
+        self.limit_trial_s = 0.0  #: wall time spent in them [s] (benchmarks/robots_pybullet.py reports its share)
         self._engaged: dict[int, np.ndarray] = {}  # per multibody: its movable joints a limit held in the trial
         self._engaged_at = -1  # the step whose trial _engaged is from
         self.compiled = compiled
@@ -984,6 +986,7 @@ class PybulletAdapter(EngineAdapter):
         torques told (:meth:`set_joint_torques`) set again (TORQUE_CONTROL acts
         for one step: the trial used them). Into ``_engaged`` for :meth:`_held_dofs`."""
         c = self.client
+        t0 = time.perf_counter()
         uids = sorted({int(self._b_uid[j]) for j in self._art_slots})
         for uid in uids:
             self._multibody(uid)  # this step's joint state, before the trial moves it
@@ -1012,6 +1015,7 @@ class PybulletAdapter(EngineAdapter):
                                              physicsClientId=c)
         self._engaged_at = self._steps
         self.limit_trials += 1
+        self.limit_trial_s += time.perf_counter() - t0
 
     def _limits_of(self, uid) -> np.ndarray:
         """(lower, upper) limits of the multibody's movable joints (m, 2) [rad or m] (cached)."""
