@@ -790,3 +790,36 @@ def test_the_limit_trial_consumes_what_pybullets_own_calls_set_before_step(how):
         finally:
             pb.disconnect(c)
     assert moved[False] > 1e-3 and moved[True] == 0.0
+
+
+def test_the_trial_sees_the_capped_ant_land_on_its_ankle_limits():
+    """The ant put down on its feet at 10 ms with the default (capped) feet,
+    no torques, and the trial (PybulletAdapter(limit_trial=True)): the feet
+    slide, the legs splay and it drops onto its ankle limits (0.3 s). The
+    trial applies the last step's loads and, for a contact closing within
+    the step, at least the force that stops it (PybulletAdapter._trial_loads):
+    the landing's contact force holds the ankles on their limits in the trial
+    as in the step, and the contacts' own balance rises above its running
+    minimum by less than REST_RISE_RTOL of the account (measured 0.095 J of
+    ~600 J); with the last step's loads alone (~0 before the landing) the
+    trial left the ankles free, W = J M^-1 J^T 3x too large along n in the
+    landing step (0.152 against 0.047 1/kg), and it rose 18.1 J."""
+    dt = DT["ant.xml"]
+    c = scenes.new_client(dt, gravity=9.81)
+    try:
+        u, floor, pairs, shapes = _load_ant(c)
+        _put_down(c, u, floor, 5e-4)
+        ad = PybulletAdapter(c, pairs, link_shapes=shapes, limit_trial=True)
+        acc = RestEnergy(ad, [u])
+        contacts, engaged = [acc.contacts], 0
+        for _ in range(40):
+            ad.step()
+            acc.update()
+            contacts.append(acc.contacts)
+            engaged = max(engaged, int(np.count_nonzero(ad._engaged.get(u, []))))
+        contacts = np.array(contacts)
+        assert engaged == 4  # it landed on its four ankle limits
+        rise = float(np.max(contacts - np.minimum.accumulate(contacts)))
+        assert rise <= REST_RISE_RTOL * abs(acc.total), (rise, acc.total)
+    finally:
+        pb.disconnect(c)

@@ -231,8 +231,9 @@ class PybulletAdapter(EngineAdapter):
         with fromto: engines.pybullet.robots gives them from the MJCF).
     limit_trial: find which joint limits hold a multibody of the pairs over
         each step by trying the step (:meth:`_limit_trial`): pybullet's
-        state saved, the last step's MSF loads applied again, one
-        ``stepSimulation``, the joints whose end speed is their limit row's
+        state saved, the last step's MSF loads applied again (and, for a
+        contact closing within the step, at least the force that stops it:
+        :meth:`_trial_loads`), one ``stepSimulation``, the joints whose end speed is their limit row's
         bound taken as held, the state restored. A contact on a link beyond
         a held joint moves with it locked (W = J M^-1 J^T with those joints
         held) and the multibody's resting contacts are solved together.
@@ -350,6 +351,7 @@ class PybulletAdapter(EngineAdapter):
         #: the loads the last step applied (pairs (k,), forces (k, 3) [N] on body 1 at points (k, 3) [m],
         #: couples (k, 3) [N m] or None, the bodies' state at the step start) or None: last_step_work
         self._last_loads = None
+        self._last_kin = None  # the last step's ContactKinematics (_trial_loads)
         #: joint torques set through set_joint_torques for the coming step, and those of the last step,
         #: per multibody: {uid: (movable joints' torques [N m or N] (m,))} (_torque_dq)
         self._tau: dict[int, np.ndarray] = {}
@@ -981,7 +983,8 @@ class PybulletAdapter(EngineAdapter):
         """Which joint limits hold each multibody of the pairs over this step,
         found by trying it (the class docstring, ``limit_trial``): pybullet's state saved, the last
         step's MSF loads applied again (the prediction of this step's, as the
-        held forces of a_ext), one ``stepSimulation``, each movable joint's end
+        held forces of a_ext; an impact's from its closing speed, :meth:`_trial_loads`),
+        one ``stepSimulation``, each movable joint's end
         speed compared with its limit rows' bounds, the state restored and the
         torques told (:meth:`set_joint_torques`) set again (TORQUE_CONTROL acts
         for one step: the trial used them). Into ``_engaged`` for :meth:`_held_dofs`."""
@@ -990,11 +993,11 @@ class PybulletAdapter(EngineAdapter):
         uids = sorted({int(self._b_uid[j]) for j in self._art_slots})
         for uid in uids:
             self._multibody(uid)  # this step's joint state, before the trial moves it
-        loads = self._last_loads
+        loads = self._trial_loads(bodies)
         sid = pb.saveState(physicsClientId=c)
         try:
             if loads is not None:
-                self._apply(bodies, loads[0], loads[1], loads[2])
+                self._apply(bodies, *loads)
             pb.stepSimulation(physicsClientId=c)
             for uid in uids:
                 mb = self._multibody(uid)
@@ -1016,6 +1019,51 @@ class PybulletAdapter(EngineAdapter):
         self._engaged_at = self._steps
         self.limit_trials += 1
         self.limit_trial_s += time.perf_counter() - t0
+
+    def _trial_loads(self, bodies: _Bodies):
+        """(pairs, forces (k, 3) [N], points (k, 3) [m]) the trial step applies
+        (:meth:`_limit_trial`), or None: the last step's MSF loads (the
+        prediction of this step's for a resting contact), and for a pair on a
+        multibody whose contact point, at the last step's point and normal,
+        closes now at v_n > 0 and reaches the floor within the step
+        (x + dt v_n > 0, x the last step's x advanced by dt v_n), at least
+        the force that stops that closing within the step, v_n / (n.W.n dt)
+        along n (the rigid impulse; the last step's W): the last step's loads
+        alone missed an impact onto a limit, the step's contact force holding
+        a joint the trial left free (the humanoid's forearm striking the floor
+        at 5.3 m/s with its elbow free in the trial, W 7x the engine's
+        response, +5.3 J; the capped ant landing on its ankle limits, +18.1 J;
+        docs/engines.md)."""
+        loads, kin = self._last_loads, self._last_kin
+        ph = [] if loads is None else [int(i) for i in loads[0]]
+        F = [] if loads is None else [f for f in np.asarray(loads[1], float)]
+        pts = [] if loads is None else [q for q in np.asarray(loads[2], float)]
+        if kin is not None:
+            dt = self._dt
+            for r, i in enumerate(np.asarray(kin.pair, int).tolist()):
+                j1, j2 = self._slot[i]
+                if not (self._b_art[j1] or self._b_art[j2]):
+                    continue
+                n, pt = kin.normal[r], kin.point[r]
+                v1 = bodies.v[j1] + np.cross(bodies.w[j1], pt - bodies.com[j1])
+                v2 = bodies.v[j2] + np.cross(bodies.w[j2], pt - bodies.com[j2])
+                vn = -float((v1 - v2) @ n)
+                w = float(n @ kin.W[r] @ n)
+                if not (vn > 0.0 and w > 0.0 and kin.x[r] + 2.0 * dt * vn > 0.0):
+                    continue
+                stop = vn / (w * dt)
+                if i in ph:
+                    q = ph.index(i)
+                    fn = float(F[q] @ n)
+                    if fn < stop:
+                        F[q] = F[q] + (stop - fn) * n
+                else:
+                    ph.append(i)
+                    F.append(stop * n)
+                    pts.append(pt)
+        if not ph:
+            return None
+        return np.array(ph, int), np.array(F, float).reshape(-1, 3), np.array(pts, float).reshape(-1, 3)
 
     def _limits_of(self, uid) -> np.ndarray:
         """(lower, upper) limits of the multibody's movable joints (m, 2) [rad or m] (cached)."""
