@@ -26,7 +26,7 @@ import numpy as np
 
 from msf_contact.curvature import SurfaceCurvature, relative_curvature
 from msf_contact import closed_forms as cf
-from msf_contact._validate import SMALL_STRAIN_X_OVER_R
+from msf_contact._validate import SMALL_STRAIN_X_OVER_R, ValidityWarning
 from msf_contact.geometry import Curvature, SideFootprint
 from msf_contact.laws import MSFLaw, self_consistent_omega
 from msf_contact.shapes import DEFAULT_EDGE_RADIUS, Box, Capsule, Cylinder, Ellipsoid, Mesh, Sphere
@@ -128,7 +128,36 @@ def shape_curvature(shape, pos, rot, point, outward) -> SurfaceCurvature:
     return local.rotated(rot)
 
 
-def contact_curvature(shape1, pose1, shape2, pose2, point, normal, x: float = 0.0) -> Curvature:
+def bounding_curvature(shape) -> float:
+    """1 / the radius of the smallest centred sphere that holds ``shape`` [1/m]
+    (0: a plane): the flattest a closed convex surface of that size is
+    taken to be where a contact leaves no point law (:func:`contact_law`)."""
+    if isinstance(shape, Plane):
+        return 0.0
+    if isinstance(shape, Sphere):
+        return 1.0 / shape.radius
+    if isinstance(shape, Ellipsoid):
+        return 1.0 / max(shape.semi_axes)
+    if isinstance(shape, Capsule):
+        return 1.0 / (shape.radius + shape.half_length)
+    if isinstance(shape, Cylinder):
+        return 1.0 / math.hypot(shape.radius, shape.half_length)
+    if isinstance(shape, Box):
+        return 1.0 / float(np.linalg.norm(shape.half_extents))
+    if isinstance(shape, ConvexMesh):
+        return shape.k_min
+    if isinstance(shape, Mesh):
+        return 1.0 / float(np.max(np.linalg.norm(shape.vertices, axis=1)))
+    raise ValueError(f"no bounding curvature for {type(shape).__name__}")
+
+
+def _raised(s: SurfaceCurvature, k_min: float) -> SurfaceCurvature:
+    """``s`` with each principal curvature below ``k_min`` [1/m] raised to it."""
+    return SurfaceCurvature(max(s.k1, k_min), max(s.k2, k_min), s.d1, s.d2)
+
+
+def contact_curvature(shape1, pose1, shape2, pose2, point, normal, x: float = 0.0,
+                      raised: bool = False) -> Curvature:
     """The pair's :class:`~msf_contact.geometry.Curvature` at a contact:
     body 1's surface (outward -normal) and body 2's (outward +normal)
     combined by :func:`msf_contact.curvature.relative_curvature`. pose: (pos
@@ -139,11 +168,15 @@ def contact_curvature(shape1, pose1, shape2, pose2, point, normal, x: float = 0.
     margin of a falling body) the midpoint is that far from either surface
     and would pick another feature of a shape with features (a box corner's
     midpoint read as an edge or a face: MuJoCo's user drop of a box raised
-    "line contact" at t = 0.235 s, pybullet's "two planes touch")."""
+    "line contact" at t = 0.235 s, pybullet's "two planes touch").
+    raised: each surface's principal curvatures below its
+    :func:`bounding_curvature` raised to it (:func:`contact_law`)."""
     n = np.asarray(normal, dtype=float)
     p = np.asarray(point, dtype=float)
     s1 = shape_curvature(shape1, *pose1, p - 0.5 * x * n, -n)
     s2 = shape_curvature(shape2, *pose2, p + 0.5 * x * n, n)
+    if raised:
+        s1, s2 = _raised(s1, bounding_curvature(shape1)), _raised(s2, bounding_curvature(shape2))
     return relative_curvature(s1, s2).curvature
 
 
@@ -232,18 +265,43 @@ def contact_law(names: tuple, template, bank: "LawBank", shape1, pose1, shape2, 
     curvature per contact point): ``bank.law_for`` the pair's law
     ``template`` and the curvature of both surfaces at the point
     (:func:`contact_curvature`). names: the two geoms' (bodies', links')
-    names for the message; t [s] the engine time; x [m] the approach at the
-    point (:func:`contact_curvature`). ValueError, naming both
-    and what would make it work, for a contact no law here carries (a line
-    contact, two flat faces, a concave fit)."""
+    names for the messages; t [s] the engine time; x [m] the approach at the
+    point (:func:`contact_curvature`).
+
+    A contact that leaves no point law (a line: both surfaces straight along
+    one direction, e.g. a cylinder standing on its flat end, its rim's top
+    straight along the rim; a capsule's side on a box face; two flat faces,
+    a box on a free box) is never refused mid-run: its surfaces' straight
+    directions take their geom's :func:`bounding_curvature` (the sphere that
+    holds the geom: the flattest a closed surface of that size is taken to
+    be, as ConvexMesh's k_min), the point law of that curvature carries it,
+    its records say so in outside_validity (the law's ``validity_note``,
+    engines._contacts.records) and a ValidityWarning names both geoms, once
+    per pair (the box and the capsule's or cylinder's side on a plane have
+    their line laws: BoxOnPlane, SideLine). ValueError, naming both and what
+    would make it work, for a curvature the pair's law cannot carry."""
     a, b = names
+    note = None
     try:
         curv = contact_curvature(shape1, pose1, shape2, pose2, point, normal, x)
-        return bank.law_for(template, curv, curvature_tolerance(shape1, shape2))
+    except ValueError as exc:  # no point contact: the straight directions raised
+        curv = contact_curvature(shape1, pose1, shape2, pose2, point, normal, x, raised=True)
+        note = (f"{exc}: carried as the point law with each straight direction's curvature raised to its "
+                f"geom's bounding sphere's, 1/({1.0 / max(bounding_curvature(shape1), 1e-300):.4g} m) and "
+                f"1/({1.0 / max(bounding_curvature(shape2), 1e-300):.4g} m) (a line or flat contact between "
+                "these shapes has no law in the engines): the force is the "
+                "model's stand-in, not a line or flat-punch contact's")
+        if (a, b) not in bank.noted:
+            bank.noted.add((a, b))
+            warnings.warn(f"pair ({a!r}, {b!r}) at t = {t:.6g} s: {note} (warned once per pair; each such "
+                          "record carries it in outside_validity; for a line contact's law give the pair a box, "
+                          "capsule or cylinder on a plane, or use the built-in contact for this pair)",
+                          ValidityWarning, stacklevel=3)
+    try:
+        return bank.law_for(template, curv, curvature_tolerance(shape1, shape2), note)
     except ValueError as exc:
-        raise ValueError(f"pair ({a!r}, {b!r}) at t = {t:.6g} s: {exc}; the engines have no law for it yet (a "
-                         "line contact's footprint law is in msf_contact only): use the built-in contact for this "
-                         "pair") from None
+        raise ValueError(f"pair ({a!r}, {b!r}) at t = {t:.6g} s: {exc}; the engines have no law for it: use the "
+                         "built-in contact for this pair") from None
 
 
 class LawBank:
@@ -262,6 +320,8 @@ class LawBank:
 
     def __init__(self, kernel=None):
         self._laws: dict[tuple, object] = {}
+        #: pairs (names) warned that a contact was carried by a raised curvature (contact_law)
+        self.noted: set = set()
         #: law -> (code, constants) of the compiled kernel or None (engines._contacts.compiled.kernel_law):
         #: given, the MSF laws built here integrate their onsets compiled (KernelOnsetMSFLaw)
         self._kernel = kernel
@@ -270,22 +330,26 @@ class LawBank:
     def _bin(r: float, tol: float):
         return None if math.isinf(r) else int(round(math.log(r) / math.log1p(tol)))
 
-    def law_for(self, template, curv: Curvature, tol: float):
+    def law_for(self, template, curv: Curvature, tol: float, note: str | None = None):
         """The law for a contact of curvature ``curv``: ``template`` (the
         pair's law) if its effective radii are within ``tol`` of the
         contact's, else a law of the same kind and options built for
         ``curv`` (one per bin; ValueError from the law for a curvature it
-        cannot carry)."""
-        if curvature_mismatch(template.curvature, curv) <= tol:
+        cannot carry). note: the records' outside_validity note of a
+        stand-in curvature (contact_law), kept on the law as
+        ``validity_note`` (never the template: a law of its own)."""
+        if note is None and curvature_mismatch(template.curvature, curv) <= tol:
             return template
         ra, rb = effective_radii(curv)
-        key = (id(template), self._bin(ra, tol), self._bin(rb, tol), curv.footprint)
+        key = (id(template), self._bin(ra, tol), self._bin(rb, tol), curv.footprint, note is not None)
         law = self._laws.get(key)
         if law is None or curvature_mismatch(law.curvature, curv) > tol:
             law = template.with_curvature(curv)
             known = self._kernel(law) if self._kernel is not None and type(law) is MSFLaw else None
             if known is not None:  # its onsets compiled (no table for a non-spherical msf contact)
                 law = KernelOnsetMSFLaw.of(law, *known)
+            if note is not None:
+                law.validity_note = note
             law = self._laws[key] = law
         return law
 

@@ -103,3 +103,58 @@ def test_a_box_rests_on_a_face_at_the_static_overlap(box_drop, engine):
     for x, onset in zip(x_s, out["onsets"]):
         want = float(static_overlap(line, [box_drop.MASS * box_drop.G / 2], onset)[0])
         assert math.isclose(x, want, rel_tol=STATIC_RTOL), (x, want)
+
+
+def test_the_rounded_box_corners_in_closed_form():
+    """engines._narrow.box_corners and BoxOnPlane.update against the rounded
+    box's geometry: lying on a face, its four lowest corners are at the
+    sharp box's face (x = 0.5 mm for a face 0.5 mm into the plane, whatever
+    the edge radius) and their edge is one of the face's (the most level);
+    standing on a corner (body diagonal vertical), the corner sphere's lowest
+    point is rho (sqrt(3) - 1) above the sharp corner."""
+    from engines._narrow import BoxOnPlane, LawBank, box_corners
+    from msf_contact.shapes import Box
+
+    h, rho = np.array([0.03, 0.02, 0.01]), 2e-3
+    box = Box(tuple(h), rho)
+    law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(0.02))
+    c = box_corners(box, [0.0, 0.0, h[2] - 5e-4], np.eye(3), np.zeros(3), [0.0, 0.0, 1.0])
+    assert np.sort(c.x)[-4:] == pytest.approx([5e-4] * 4, abs=1e-15)
+    bop = BoxOnPlane(box, ("box", "floor"))
+    bop.check(law)
+    bop.update([0.0, 0.0, h[2] - 5e-4], np.eye(3), np.zeros(3), [0.0, 0.0, 1.0], np.zeros(4, bool), law, LawBank())
+    assert sorted(bop.corner.tolist()) == sorted(np.flatnonzero(c.x > 0).tolist())
+    assert set(bop.axis.tolist()) <= {0, 1}  # an edge of the bottom face, never the vertical one
+    # the body diagonal (1, 1, 1) turned to -z (a 180 deg turn about the bisector of it and -z)
+    a = np.array([1.0, 1.0, 1.0]) / math.sqrt(3) - np.array([0.0, 0.0, 1.0])
+    a /= np.linalg.norm(a)
+    rot = 2 * np.outer(a, a) - np.eye(3)
+    cube = Box((0.01, 0.01, 0.01), rho)
+    sharp = 0.01 * math.sqrt(3)  # the sharp corner touches with the centre this high
+    c = box_corners(cube, [0.0, 0.0, sharp], rot, np.zeros(3), [0.0, 0.0, 1.0])
+    assert np.max(c.x) == pytest.approx(-rho * (math.sqrt(3) - 1), rel=1e-12)
+
+
+def test_two_flat_faces_are_carried_flagged_by_the_bounding_sphere():
+    """engines._narrow.contact_law for two flat faces (a box's face on a
+    plane read as a point: no point law): not a ValueError but the point law
+    of the box's bounding sphere (radius |h|) on the plane, with the
+    records' note, warned once per pair."""
+    from engines._narrow import LawBank, Plane, contact_law, effective_radii
+    from msf_contact._validate import ValidityWarning
+    from msf_contact.shapes import Box
+
+    h = (0.03, 0.02, 0.01)
+    law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(0.02))
+    bank = LawBank()
+    pose = (np.array([0.0, 0.0, 0.01]), np.eye(3))
+    args = (Box(h, 1e-3), pose, Plane(), (np.zeros(3), np.eye(3)), np.zeros(3), np.array([0.0, 0.0, 1.0]), 0.0)
+    with pytest.warns(ValidityWarning, match=r"pair \('box', 'floor'\).*two planes touch.*carried as the point law"):
+        got = contact_law(("box", "floor"), law, bank, *args)
+    assert effective_radii(got.curvature) == pytest.approx((math.hypot(*h),) * 2, rel=1e-12)
+    assert "carried as the point law" in got.validity_note and not hasattr(law, "validity_note")
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # once per pair
+        assert contact_law(("box", "floor"), law, bank, *args) is got

@@ -411,15 +411,22 @@ def test_a_cylinder_lying_flat_bounces_with_the_line_law(tilt_deg):
         assert rel(math.sqrt(ratio), ref.cor_n) < LINE_RTOL
 
 
-def test_a_cylinder_on_its_flat_end_is_refused_naming_both_bodies():
+def test_a_cylinder_on_its_flat_end_is_carried_flagged_not_refused_mid_run():
     """Its end face on a plane touches along the rim's top, a torus straight
-    along the rim there (a line around the face: no law in the engines);
-    refused naming both bodies, as in MuJoCo."""
+    along the rim there (a line around the face: no law in the engines):
+    before, refused mid-run; now carried by the point law with the rim's
+    straight direction raised to the cylinder's bounding sphere, warned
+    naming both bodies, every record flagged, as in MuJoCo."""
+    from msf_contact._validate import ValidityWarning
+
+    stand_in = "carried as the point law with each straight direction's curvature raised"
     r, h = 0.01, 0.03
     m = RUBBER.density * math.pi * r * r * 2 * h
     law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(r))
-    with pytest.raises(ValueError, match=r"pair \('body\d+/link0', 'body\d+/link0'\).*built-in contact"):
-        drop(law, dict(kind=pb.GEOM_CYLINDER, radius=r, height=2 * h), m, m * 1e-4, h + 1e-4)
+    with pytest.warns(ValidityWarning, match=r"pair \('body\d+/link0', 'body\d+/link0'\).*" + stand_in):
+        rec, ad = drop(law, dict(kind=pb.GEOM_CYLINDER, radius=r, height=2 * h), m, m * 1e-4, h + 1e-4)
+    assert ad.records and all(any(stand_in in note for note in r_.outside_validity) for r_ in ad.records)
+    assert 0.0 < rec.cor_n < 1.0
 
 
 def test_a_plane_as_body1_is_refused_saying_to_swap():

@@ -209,6 +209,9 @@ class Records:
                               + "; ".join(outside) + f" -- more than {STRAIN_WARN_PAIRS} pairs have left the "
                               "small-strain range; the others are not warned one by one: every record carries its "
                               "note in outside_validity (count them there)", ValidityWarning, stacklevel=2)
+        stand_in = getattr(law, "validity_note", None)  # a contact no law carries, by a stand-in curvature
+        if stand_in:
+            outside.append(stand_in)
         if self._gain_note[p]:
             outside.append(self._gain_note[p])
         gain = self._energy_gain(p, vin, v_out, lu, yl[_WT], v, yl[_WEL] + yl[_WVI])
