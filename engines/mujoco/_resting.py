@@ -33,6 +33,7 @@ kinematics, which the kernel has taken (they update the a_ext state once).
 
 from __future__ import annotations
 
+import numba
 import numpy as np
 
 from engines import _kernel as K
@@ -61,11 +62,12 @@ def eligible(ad) -> bool:
             and not mgr._pending and not (mgr._balance is not None and mgr._balance._open))
 
 
-def _args(ad, factor: float) -> tuple:
-    """(MjData's qfrc_passive, resting_step's arguments after the per-call ones, its counters):
-    the adapter's, the manager's and the MjData's arrays, which live as long as the adapter, built
-    once (again when the manager's law tables are replaced: ContactManager.set_law); factor: the
-    adapter's CANDIDATE_FACTOR."""
+def _args(ad, factor: float) -> list:
+    """[MjData's qfrc_passive, resting_step's arguments after the per-call ones, its counters,
+    what to call]: the adapter's, the manager's and the MjData's arrays, which live as long as the
+    adapter, built once (again when the manager's law tables are replaced: ContactManager.set_law);
+    factor: the adapter's CANDIDATE_FACTOR. What to call: resting_step until its first call with
+    these arguments, then its compiled function for their types (:func:`_compiled`)."""
     mgr = ad.manager
     a = ad._rest_args
     if a is not None and a[0] is mgr._kcodes and a[1] is mgr._kLC:
@@ -89,8 +91,21 @@ def _args(ad, factor: float) -> tuple:
         np.zeros(P, np.bool_), mgr.t_onset, SETTLE_AFTER_DURATIONS, STEPS_PER_CONTACT_MIN,
         np.empty(k, np.bool_), np.empty(k, np.bool_), np.empty((2 * k, 3), np.int64), np.empty((2 * k, 3)),
         np.empty((2 * k, 3)))
-    ad._rest_args = (mgr._kcodes, mgr._kLC, (d.qfrc_passive, args, ints))
+    ad._rest_args = (mgr._kcodes, mgr._kLC, [d.qfrc_passive, args, ints, resting_step])
     return ad._rest_args[2]
+
+
+def _compiled(call_args: tuple):
+    """resting_step's compiled function for the types of ``call_args`` (numba's
+    Dispatcher.get_overload, after a call with them compiled it or loaded it from the cache):
+    called directly it skips the dispatcher's per-call typing of ~120 arguments (~3 us in the
+    hook, measured). The types cannot change between calls: the arrays are the ones _args keeps
+    (dtype, dimensions and layout fixed for the adapter's life), the per-step ones are made with
+    fixed dtypes, and the scalars are passed as Python float and bool (step)."""
+    try:
+        return resting_step.get_overload(tuple(numba.typeof(a) for a in call_args))
+    except KeyError:  # not expected (numba typed the call otherwise): the dispatcher types every call
+        return lambda *a: resting_step(*a)
 
 
 def step(ad, factor: float) -> tuple[bool, bool, int]:
@@ -104,12 +119,15 @@ def step(ad, factor: float) -> tuple[bool, bool, int]:
     # d.time, which the step tracker read in this hook call (only the hook calls this, after
     # StepTracker.classify; an MjData field read from Python costs ~1 us in the hook)
     t0 = ad._tracker.t0
-    qfrc, args, ints = _args(ad, factor)
+    cached = _args(ad, factor)
+    qfrc, args, ints, call = cached
     k = ad._gi.shape[0]
     # the step's ContactForces arrays, new every step (the manager's are; a caller may keep them)
     force, point, pair = np.empty((k, 3)), np.empty((k, 3)), np.empty(k, np.int64)
-    code, n, bad, n_hit, n_unheld, m = resting_step(
-        t0, mgr.dt, mgr.settle_rate, mgr.timing_correction, qfrc, force, point, pair, *args)
+    head = (t0, float(mgr.dt), float(mgr.settle_rate), bool(mgr.timing_correction), qfrc, force, point, pair)
+    code, n, bad, n_hit, n_unheld, m = call(*head, *args)
+    if call is resting_step:
+        cached[3] = _compiled(head + args)
     if code == BAD_DETECTION:
         ad._detection_failed(bad)
     if code != RESTING:
