@@ -104,7 +104,8 @@ class StepTracker:
         self._opt = model.opt  # the model's options (the same object at every access: read once)
         self._nv = model.nv
         self.h = float(model.opt.timestep)  # the timestep read at the last classify [s]
-        self._views = None  # (MjData, its qpos, its qvel): views kept for the MjData classified (_state)
+        self._views = None  # (MjData, its qpos, its qvel): views into d's memory, which stays where it is for d's
+        # life, kept from call to call while the same MjData is classified
         self.t0: float | None = None  # time of the current step's start state
         self.q0 = np.zeros(model.nq)
         self.v = np.zeros((4, model.nv))  # qvel of the start state and of RK4's stages 2-4
@@ -143,7 +144,10 @@ class StepTracker:
         t = float(d.time)
         opt = self._opt
         h = self.h = float(opt.timestep)
-        qpos, qvel = self._state(d)
+        v = self._views
+        if v is None or v[0] is not d:
+            v = self._views = (d, d.qpos, d.qvel)
+        qpos, qvel = v[1], v[2]
         if self.t0 is None:
             return self._start(d, "first", t)
         rk4 = int(opt.integrator) == _RK4
@@ -156,7 +160,7 @@ class StepTracker:
             return "same"
         self.jumped = None
         if t == self.t0 + h and (not rk4 or self.stage == 3):
-            why = self._not_integrated(d, h, rk4)
+            why = self._not_integrated(d, h, rk4, qpos, qvel)
             if not why:
                 return self._start(d, "step", t)
         elif t == self.t0:
@@ -168,32 +172,23 @@ class StepTracker:
         self.why = why
         return self._start(d, "jump", t)
 
-    def _state(self, d) -> tuple[np.ndarray, np.ndarray]:
-        """d.qpos, d.qvel: views into d's memory, which stays where it is for d's life, kept
-        from call to call while the same MjData is classified."""
-        v = self._views
-        if v is None or v[0] is not d:
-            v = self._views = (d, d.qpos, d.qvel)
-        return v[1], v[2]
-
     def _start(self, d, kind: str, t: float) -> str:
         """The state of this call (time t = d.time [s]) becomes the step's start state."""
         self.t0 = t
         if self._taken:  # off_image_start copied qpos, qvel in its pass
             self._taken = False
         else:
-            qpos, qvel = self._state(d)
+            _, qpos, qvel = self._views  # d's (classify keeps them)
             self.q0[:] = qpos
             self.v[0] = qvel
             self._q_is_q0 = False
         self.stage = 0
         return kind
 
-    def _not_integrated(self, d, h: float, rk4: bool) -> str:
-        """'' if (qpos, qvel) is the integrator's step from the start state,
-        else what differs (and the trees that differ in ``jumped``)."""
+    def _not_integrated(self, d, h: float, rk4: bool, qpos: np.ndarray, qvel: np.ndarray) -> str:
+        """'' if (qpos, qvel) (d's, the views classify keeps) is the integrator's step from the start
+        state, else what differs (and the trees that differ in ``jumped``)."""
         m = self.model
-        qpos, qvel = self._state(d)
         if not rk4 and self._nv:
             # semi-implicit: qpos advanced with the new velocity (a qvel written between steps
             # breaks that too); the coordinates off the image in one compiled pass

@@ -751,10 +751,10 @@ class MujocoAdapter(EngineAdapter):
         m, d = self.model, self.data       # through the MjWarningStat wrapper costs ~1-3 us)
         with ctx:
             for _ in range(int(n)):
-                resets = int(counts[bad])
+                resets = counts.item(bad)
                 mujoco.mj_step(m, d)
                 self.steps += 1
-                if counts[bad] != resets:
+                if counts.item(bad) != resets:
                     self._bad_acceleration()
 
     def _bad_acceleration(self) -> None:
