@@ -20,6 +20,7 @@ import pytest
 from msf_contact import Body, ContactPair, Curvature, column_loads, make_law, preset, static_overlap
 from test_multi_contact import _engine_available
 from test_pile import ENERGY_ROUNDOFF
+from engines._contacts.state import ENERGY_GAIN_RTOL
 from _scripts import load_script
 
 R, G, DT = 0.01, 9.81, 1e-3
@@ -197,3 +198,56 @@ def test_resting_steel_pair_reads_the_engines_geometry(engine):
             tilt = math.degrees(math.atan2(pos[1][0] - pos[0][0], pos[1][2] - pos[0][2]))
     assert len(gaps) > ROLL_STEPS // 2 and tilt > 2.0, (len(gaps), tilt)
     assert max(gaps) <= ROLL_GAP_MAX, max(gaps)
+
+
+# ------------------------------------------------------------ a placed pile --
+#: scripts/pile_placed.py: nine spheres (R = 10 mm; seven natural rubber, two steel) placed at rest in
+#: scripts/pile.py's box two spheres wide: four columns of two in the corners, 10 um from two walls each,
+#: and a steel sphere in the middle on the four lower ones (contacts 62 degrees from the vertical,
+#: pushing them into the walls), each layer PLACED_DROP above its place, dt = 1 ms. At rest
+#: (scripts/pile.py REST_DOC) from step 704 (MuJoCo) and 606 (pybullet); the run stops PLACED_REST_STEPS
+#: later (~7 s of CPU each).
+PLACED_STEPS, PLACED_REST_STEPS = 900, 50
+#: Each layer this far above touching [m]: placed exactly touching, a pair at x = 0 and at rest chattered
+#: in pybullet (more than MAX_SEGMENTS onsets and ends in a step); 10 um is a fall of 1.4 ms.
+PLACED_DROP = 1e-5
+#: The engine's overlaps (from the sphere centres) at rest against the static overlaps of the forces the
+#: contacts carry, largest over the contacts [m]. Measured 4.7 um (MuJoCo) and 4.9 um (pybullet): the
+#: engine's lead over the internal overlap that the settle-in leaves, frozen by the settled steps (each
+#: settled stretch entered closing at x' leaves the engine (dt/2) x' deeper; docs/engines.md, "what
+#: moves the engine's lead": 0.2 um with the settled step taken in the engine's frame, not landed). The
+#: bound is twice what was measured, the order of one free step's g dt^2 (9.8 um): it catches a step
+#: left out of the integration, not the lead itself (issue 10's acceptance is not met by this).
+PLACED_ENGINE_ATOL = 1e-5
+#: The same, median over the contacts carrying >= 10 % of a mean sphere's weight [-]: measured 6.0 %
+#: (MuJoCo) and 9.2 % (pybullet).
+PLACED_ENGINE_MEDIAN_RTOL = 0.2
+#: The internal overlaps against the same, largest over the contacts [m]: the settled steps' balance is
+#: exact to ~1e-9 of the force; the run stops 50 steps into the rest with the last 0.3-0.4 mm/s of
+#: vibration (measured 17 nm MuJoCo, 42 nm pybullet; the median over the loaded contacts 2.7e-4 / 1.9e-4).
+PLACED_INTERNAL_ATOL = 2e-7
+#: support / weight at rest [-]: measured 0.9950 / 0.9964 (the last vibration).
+PLACED_SUPPORT_RTOL = 1e-2
+
+
+@pytest.mark.parametrize("engine", [pytest.param("mujoco", marks=pytest.mark.mujoco),
+                                    pytest.param("pybullet", marks=pytest.mark.pybullet)])
+def test_placed_pile_rests_at_static_overlaps(engine):
+    """Issue 10: a pile of nine spheres placed in the box
+    (scripts/pile_placed.py) settles with no island step flagged and its
+    energy E never rising in a step beyond (dt/2)|dq| by more than the
+    island check's ENERGY_GAIN_RTOL of E (measured: none beyond it, both
+    engines; the largest rise 1.2e-6 J at step 54 is within (dt/2)|dq|), no
+    contact begun deep, comes to rest
+    (scripts/pile.py REST_DOC), and rests with the walls and floor carrying
+    its weight, each contact's internal overlap at the static overlap of the
+    force it carries, and the engine's within PLACED_ENGINE_ATOL of it."""
+    _engine_available(engine)
+    out = load_script("pile_placed").run(engine, PLACED_STEPS, DT, PLACED_DROP, PLACED_REST_STEPS)
+    assert out["exploded_at_step"] is None and out["island_steps_flagged"] == 0, out
+    assert out["E_max_step_rise_beyond_dq_J"] <= ENERGY_GAIN_RTOL * out["E_start_J"], out
+    assert out["at_rest_from_step"] is not None and out["deep_onsets"] == 0, out
+    assert out["support_over_weight"] == pytest.approx(1.0, abs=PLACED_SUPPORT_RTOL), out
+    assert out["overlap_vs_static_max_abs_m"] <= PLACED_INTERNAL_ATOL, out
+    assert out["engine_overlap_vs_static_max_abs_m"] <= PLACED_ENGINE_ATOL, out
+    assert out["engine_overlap_vs_static_median_rel"] <= PLACED_ENGINE_MEDIAN_RTOL, out
