@@ -148,17 +148,18 @@ SQUEEZE_PUSH = 1.0
 #: path (ContactManager.settled_path off) step by step over the ramp and hold [-]. The settled force
 #: is the law's at the step's end state, RK4's the step's mean; on a quasi-static ramp they differ by
 #: the curvature of the force history within a step and by the ringing the ramp excites, which RK4
-#: resolves and the rubber's damping decays while backward Euler damps it in a step. Measured
-#: (MuJoCo) 4.5e-4 at the ramp's steepest, 8e-5 in the hold; a kinked (linear) ramp rang 7.6e-3.
+#: resolves and the rubber's damping decays while backward Euler damps it in a step. Measured 1.2e-3
+#: over the ramp, 1.8e-4 in the hold (both engines, the same digits); a kinked (linear) ramp rang
+#: 7.6e-3.
 SQUEEZE_FORCE_RTOL = 2e-3
 #: The internal overlaps of the two paths [-], beyond one step's advance of the RK4 overlap
 #: |x(t) - x(t - dt)|: backward Euler's force is the end state's, RK4's the step's mean, so the
-#: settled overlap lags the RK4 one by up to one step's advance on a ramp (measured 0.34 um at
-#: 0.34 um a step, MuJoCo); beyond that they agree as the forces do (F ~ x^1.5).
+#: settled overlap lags the RK4 one by up to one step's advance on a ramp (measured 0.25 um at
+#: 0.49 um a step); beyond that they agree as the forces do (F ~ x^1.5; 1.6e-4 in the hold).
 SQUEEZE_X_RTOL = 2e-3
 #: Both paths' overlaps at the end of the hold against x_s of the load each contact carries (the
-#: weights above plus the push) [-]: the residual motion after 50 steps of hold (measured <= 1e-4
-#: between the paths).
+#: weights above plus the push) [-]: the residual motion after 50 steps of hold (the paths 1.6e-4
+#: apart at its end).
 SQUEEZE_STATIC_RTOL = 1e-3
 
 
