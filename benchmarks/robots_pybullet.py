@@ -121,6 +121,7 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *
                        rest_largest_contact_gain_J=max((g[1] for g in acc.contact_gains), default=0.0))
         if adapter is not None:
             out["limit_trial_share"] = trial_s / wall
+            out["limit_trial_misses"] = list(adapter.limit_trial_misses)  # (held not tried, tried not held) steps
             out.update(records=len(adapter.records), managed_contacts=len(adapter.pairs), jumps=adapter.jumps,
                        outside_validity=sum(bool(r.outside_validity) for r in adapter.records))
         return out

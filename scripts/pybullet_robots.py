@@ -209,7 +209,10 @@ def seeds(tell: bool, mu, model: str = "ant.xml") -> list[str]:
                    f"{r['rest_energy_J'][0]:.1f} -> {r['rest_energy_J'][1]:.1f} J, rise above the running minimum "
                    f"{r['rest_rise_J']:.3g} J, pybullet added {r['rest_engine_added_J']:.3g} J, the contacts' own "
                    f"balance rose {r['rest_contacts_rise_J']:.3g} J ({r['rest_contact_gain_steps']} steps above "
-                   f"RestEnergy's bound; {r['rest_gain_steps']} of the account)")
+                   f"RestEnergy's bound, the largest {r['rest_largest_contact_gain_J']:.3g} J; "
+                   f"{r['rest_gain_steps']} of the account, the largest {r['rest_largest_gain_J']:.3g} J); "
+                   f"the trial's misses (held not tried, tried not held) {r['limit_trial_misses']} of "
+                   f"{r['adapter'].limit_trials} trials")
     return out
 
 

@@ -803,7 +803,8 @@ def test_the_trial_sees_the_capped_ant_land_on_its_ankle_limits():
     minimum by less than REST_RISE_RTOL of the account (measured 0.095 J of
     ~600 J); with the last step's loads alone (~0 before the landing) the
     trial left the ankles free, W = J M^-1 J^T 3x too large along n in the
-    landing step (0.152 against 0.047 1/kg), and it rose 18.1 J."""
+    landing step (0.152 against 0.047 1/kg; PybulletAdapter.limit_trial_misses
+    counts that step), and it rose 18.1 J."""
     dt = DT["ant.xml"]
     c = scenes.new_client(dt, gravity=9.81)
     try:
@@ -819,6 +820,7 @@ def test_the_trial_sees_the_capped_ant_land_on_its_ankle_limits():
             engaged = max(engaged, int(np.count_nonzero(ad._engaged.get(u, []))))
         contacts = np.array(contacts)
         assert engaged == 4  # it landed on its four ankle limits
+        assert ad.limit_trial_misses[0] == 0  # no step held a joint the trial left free (1 with the last loads)
         rise = float(np.max(contacts - np.minimum.accumulate(contacts)))
         assert rise <= REST_RISE_RTOL * abs(acc.total), (rise, acc.total)
     finally:

@@ -270,6 +270,9 @@ class PybulletAdapter(EngineAdapter):
         self.limit_trial = limit_trial
         self.limit_trials = 0  #: trial steps taken (_limit_trial)
         self.limit_trial_s = 0.0  #: wall time spent in them [s] (benchmarks/robots_pybullet.py reports its share)
+        #: steps whose real step held a joint the trial left free, and left free one it held, per multibody
+        #: (_count_trial_misses)
+        self.limit_trial_misses = [0, 0]
         self._engaged: dict[int, np.ndarray] = {}  # per multibody: its movable joints a limit held in the trial
         self._engaged_at = -1  # the step whose trial _engaged is from
         self.compiled = compiled
@@ -1000,16 +1003,7 @@ class PybulletAdapter(EngineAdapter):
                 self._apply(bodies, *loads)
             pb.stepSimulation(physicsClientId=c)
             for uid in uids:
-                mb = self._multibody(uid)
-                q0 = np.asarray(mb[0], float)
-                qd1 = np.array([s[1] for s in pb.getJointStates(uid, self._movable[uid], physicsClientId=c)], float)
-                lim = self._limits_of(uid)
-                # pybullet's limit row (btMultiBodyJointLimitConstraint): end speed >= (lo - q)/dt while q > lo
-                # (speculative: it ends on the limit), >= 0 beyond it (no position correction, robots.LIMIT_ERP)
-                b_lo = np.where(q0 > lim[:, 0], (lim[:, 0] - q0) / self._dt, 0.0)
-                b_hi = np.where(q0 < lim[:, 1], (lim[:, 1] - q0) / self._dt, 0.0)
-                self._engaged[uid] = (lim[:, 0] < lim[:, 1]) & ((np.abs(qd1 - b_lo) <= ENGAGED_ATOL)
-                                                               | (np.abs(qd1 - b_hi) <= ENGAGED_ATOL))
+                self._engaged[uid] = self._held_over_step(uid)
         finally:
             pb.restoreState(sid, physicsClientId=c)
             pb.removeState(sid, physicsClientId=c)
@@ -1019,6 +1013,30 @@ class PybulletAdapter(EngineAdapter):
         self._engaged_at = self._steps
         self.limit_trials += 1
         self.limit_trial_s += time.perf_counter() - t0
+
+    def _held_over_step(self, uid) -> np.ndarray:
+        """(m,) bool: the movable joints of multibody ``uid`` a limit held over
+        the step just taken from this step's start state (:meth:`_multibody`):
+        pybullet's limit row (btMultiBodyJointLimitConstraint) bounds the end
+        speed, >= (lo - q)/dt while q > lo (speculative: it ends on the limit),
+        >= 0 beyond it (no position correction, robots.LIMIT_ERP); a joint
+        ending within ENGAGED_ATOL of a bound was held."""
+        q0 = np.asarray(self._multibody(uid)[0], float)
+        qd1 = np.array([s[1] for s in pb.getJointStates(uid, self._movable[uid], physicsClientId=self.client)], float)
+        lim = self._limits_of(uid)
+        b_lo = np.where(q0 > lim[:, 0], (lim[:, 0] - q0) / self._dt, 0.0)
+        b_hi = np.where(q0 < lim[:, 1], (lim[:, 1] - q0) / self._dt, 0.0)
+        return (lim[:, 0] < lim[:, 1]) & ((np.abs(qd1 - b_lo) <= ENGAGED_ATOL) | (np.abs(qd1 - b_hi) <= ENGAGED_ATOL))
+
+    def _count_trial_misses(self) -> None:
+        """After the real step: a multibody whose step held a joint the trial
+        left free (``limit_trial_misses[0]``) or left free one the trial held
+        (``[1]``), by the trial's own criterion (:meth:`_held_over_step`): that
+        step's contacts had a W = J M^-1 J^T with the wrong joints held."""
+        for uid, tried in self._engaged.items():
+            real = self._held_over_step(uid)
+            self.limit_trial_misses[0] += int(np.any(real & ~tried))
+            self.limit_trial_misses[1] += int(np.any(tried & ~real))
 
     def _trial_loads(self, bodies: _Bodies):
         """(pairs, forces (k, 3) [N], points (k, 3) [m]) the trial step applies
@@ -1483,6 +1501,8 @@ class PybulletAdapter(EngineAdapter):
                 self._apply_couples(bodies, ph, couples)
             self._last_loads = (ph, F, np.asarray(out.point, float)[hit], couples, bodies)
         pb.stepSimulation(self.client)
+        if self._engaged_at == self._steps:
+            self._count_trial_misses()
         self._steps += 1
         self._tau_last, self._tau = self._tau, {}  # pybullet applies TORQUE_CONTROL torques for one step
         # pairs in contact or that exerted a force this step (a contact may begin and end inside it)
