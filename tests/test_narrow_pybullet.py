@@ -621,3 +621,139 @@ def test_a_lying_cylinders_ends_begin_at_touching_not_deep():
         assert ad.manager._balance.checked >= 4 and ad.manager.island_energy_gains == []
     finally:
         pb.disconnect(c)
+
+
+# --------------------------------------------------------------- racecar.urdf ---
+#: Semi-implicit Euler moves a body by dt v_end: its potential energy leads
+#: the exact one by dt/2 M g |dv| in a step whose velocity changes by dv
+#: (engines._contacts.balance). The racecar (M = 5.89 kg) landing at 0.44 m/s
+#: changes its speed by at most twice that within a contact: a step may show
+#: dt/2 M g 0.89 m/s = 0.026 J more than the physics; measured rises <= 0.3 mJ.
+RACECAR_STEP_RISE = 0.026
+
+
+def _racecar(z, flags=0):
+    """(client, racecar uid, plane.urdf uid, adapter): pybullet_data's
+    racecar at base height z over plane.urdf at 1 ms, gravity on, MSF
+    (natural rubber on steel) on its four wheels against the floor."""
+    import pybullet_data
+
+    c = scenes.new_client(1e-3, gravity=9.81)
+    pb.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=c)
+    floor = pb.loadURDF("plane.urdf", physicsClientId=c)
+    car = pb.loadURDF("racecar/racecar.urdf", [0, 0, z], flags=flags, physicsClientId=c)
+    wheels = [j for j in range(pb.getNumJoints(car, physicsClientId=c))
+              if b"wheel" in pb.getJointInfo(car, j, physicsClientId=c)[12]]
+    law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(0.05))
+    return c, car, floor, PybulletAdapter(c, [PairSpec((car, j), (floor, -1), law) for j in wheels]), wheels
+
+
+def _com_velocity(c, u):
+    """The velocity of multibody u's centre of mass [m/s] (3,)."""
+    P, M = np.zeros(3), 0.0
+    for j in range(-1, pb.getNumJoints(u, physicsClientId=c)):
+        m = pb.getDynamicsInfo(u, j, physicsClientId=c)[0]
+        v = (pb.getBaseVelocity(u, physicsClientId=c)[0] if j < 0
+             else pb.getLinkState(u, j, computeLinkVelocity=1, physicsClientId=c)[6])
+        P, M = P + m * np.asarray(v), M + m
+    return P / M
+
+
+def _multibody_energy(c, u):
+    """Kinetic + gravitational potential energy of all links of multibody u [J]."""
+    E = 0.0
+    for j in range(-1, pb.getNumJoints(u, physicsClientId=c)):
+        m, _, I = pb.getDynamicsInfo(u, j, physicsClientId=c)[:3]
+        if j < 0:
+            x, q = pb.getBasePositionAndOrientation(u, physicsClientId=c)
+            v, w = pb.getBaseVelocity(u, physicsClientId=c)
+        else:
+            st = pb.getLinkState(u, j, computeLinkVelocity=1, physicsClientId=c)
+            x, q, v, w = st[0], st[1], st[6], st[7]
+        wl = np.array(pb.getMatrixFromQuaternion(q)).reshape(3, 3).T @ np.asarray(w)
+        E += 0.5 * m * float(np.dot(v, v)) + 0.5 * float(wl @ (np.asarray(I) * wl)) + 9.81 * m * x[2]
+    return E
+
+
+@pytest.mark.parametrize("flags", [0, pb.URDF_USE_IMPLICIT_CYLINDER], ids=["hull", "implicit"])
+def test_a_urdf_cylinder_and_plane_urdf_are_a_cylinder_on_a_plane(flags):
+    """A URDF <cylinder> loaded without URDF_USE_IMPLICIT_CYLINDER is a
+    64-vertex hull in pybullet (two rings of 32); the adapter takes it for
+    the cylinder it stands for, as with the flag, and plane.urdf's collision
+    (a 200 x 200 x 10 m box) for its top face. The mesh's local fit at a
+    ring vertex, where its vertices do not determine the surface, keeps the
+    vertex: its offset to the smooth surface is at most a facet's sagitta
+    r (1 - cos(pi/32)) (before: a support point 1,024 m out)."""
+    c, car, floor, ad, wheels = _racecar(0.2, flags)
+    try:
+        for np_ in ad._narrow:
+            assert np_.shape1.kind == "cylinder" and np.allclose(np_.shape1.size, (0.05, 0.0225), rtol=1e-6)
+            assert np_.shape2.kind == "plane" and np_.method == "plane" and np_.line is not None
+            assert np.allclose(np_.shape2.rot @ np_.shape2.size, (0, 0, 1)) and abs(np_.shape2.pos[2]) < 1e-12
+        if flags == 0:
+            hull = np.asarray(pb.getMeshData(car, wheels[0], physicsClientId=c)[1], dtype=float)
+            mesh = make_shape("mesh", (1, 1, 1), vertices=hull)
+            bottom = hull[np.argmin(hull[:, 1])]  # a ring vertex, the side's outward normal about -y
+            normal = np.array([0.0, -1.0, 3.67e-6]) / np.hypot(1.0, 3.67e-6)  # as the engine's, float noise
+            q, w = mesh.support(bottom, normal)
+            assert abs(w) <= 0.05 * (1.0 - math.cos(math.pi / 32))
+    finally:
+        pb.disconnect(c)
+
+
+def test_the_racecar_lands_and_rests_on_its_wheels_without_energy_gain():
+    """pybullet_data's racecar.urdf dropped with its wheels 10 mm above
+    plane.urdf, MSF on the four wheels (their URDF cylinders, pybullet's
+    hulls): it lands, no step raises the energy (kinetic + potential + the
+    contacts' stored, ContactManager.stored_energy) by more than
+    RACECAR_STEP_RISE, its centre of mass never moves faster than it landed, and it
+    rests on its wheels sunk by less than Hertz's sphere of the wheel's
+    radius takes under half the car's weight (a line contact 43 mm long is
+    stiffer than that point contact), as pybullet's own contact rests it
+    (wheel centres 0.05099 m, its 1 mm margin). Before: the hull's local fit
+    found each wheel 1,024 m deep 5.8 mm above the floor and launched the
+    car at 64 m/s, with no warning."""
+    from msf_contact import closed_forms as cf
+
+    c, car, floor, ad, wheels = _racecar(0.01)
+    try:
+        M = sum(pb.getDynamicsInfo(car, j, physicsClientId=c)[0]
+                for j in range(-1, pb.getNumJoints(car, physicsClientId=c)))
+        v_land = math.sqrt(2 * 9.81 * 0.01)
+        E_prev = _multibody_energy(c, car)
+        rises, v_max = [], 0.0
+        for _ in range(400):
+            ad.step(1)
+            E = _multibody_energy(c, car) + ad.manager.stored_energy()
+            rises.append(E - E_prev)
+            E_prev = E
+            v_max = max(v_max, float(np.linalg.norm(_com_velocity(c, car))))
+        assert len(ad.records) >= 4  # the wheels landed (and bounced) on MSF
+        assert max(rises) <= RACECAR_STEP_RISE and v_max <= v_land
+        assert float(np.linalg.norm(_com_velocity(c, car))) < 0.01  # at rest
+        E_star = 1.0 / ((1 - RUBBER.nu**2) / RUBBER.E_storage + (1 - STEEL.nu**2) / STEEL.E_storage)
+        x_sphere = (9.0 * (0.5 * M * 9.81) ** 2 / (16.0 * 0.05 * E_star**2)) ** (1.0 / 3.0)
+        for j in wheels:
+            sink = 0.05 - pb.getLinkState(car, j, physicsClientId=c)[0][2]
+            assert 0.0 < sink < x_sphere
+    finally:
+        pb.disconnect(c)
+
+
+def test_a_wheel_found_deep_at_onset_is_warned_in_that_step_naming_the_pair():
+    """Never silent: a link's contact that begins already overlapping, with
+    elastic energy no force worked for, is warned in the step it began and
+    flagged on its record (engines._contacts.balance.DeepOnsets): the
+    racecar placed with its wheels 3 mm inside the floor. The island energy
+    check leaves a multibody's links out and the records' notes come at the
+    contact's end: before, the racecar's 1,024 m onsets were silent."""
+    from msf_contact._validate import ValidityWarning
+
+    c, car, floor, ad, wheels = _racecar(-0.003)
+    try:
+        with pytest.warns(ValidityWarning, match=r"pair \d+ \('racecar/\w+_wheel', 'plane/planeLink'\): contact "
+                                                 r"found 0.003\d* m deep at its onset"):
+            ad.step(1)
+        assert ad.deep_onsets >= 4  # each wheel's side (its two ends) began that deep
+    finally:
+        pb.disconnect(c)

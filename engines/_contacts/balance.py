@@ -196,3 +196,52 @@ class IslandBalance:
             self.warned = True
             warnings.warn(note + " (warned once; every later one is flagged on its records and listed in "
                           "ContactManager.island_energy_gains)", ValidityWarning, stacklevel=3)
+
+
+class DeepOnsets:
+    """Never silent about a contact found deep at its onset (both adapters):
+    a contact of the pairs ``mask`` that began in a step already overlapping
+    by an x whose elastic energy int_0^x F_n(x', 0) dx' (never worked for:
+    the module docstring) exceeds ENERGY_GAIN_RTOL of its approach energy
+    1/2 m v_n^2 (at least 1/2 m V_ONSET_MIN^2) is flagged in its
+    outside_validity and warned once per pair, in the step it began. Which
+    pairs: those no other check covers in that step (links of chains, whose
+    island the energy check leaves out, and narrow-phase points, whose
+    detection has no closed form behind it); ``count`` counts them."""
+
+    def __init__(self):
+        self.count = 0
+        self._warned: set[int] = set()
+        self._flagged_at: dict[int, float] = {}
+
+    def check(self, mgr, mask, t0: float, why: str, names, stacklevel: int = 3) -> list[int]:
+        """Flag the contacts of the pairs ``mask`` (P,) bool that began in
+        [t0, t0 + dt) that deep; ``why`` the sentence saying what put them
+        there and what to change; names: each pair's name for the warning.
+        Returns the pairs flagged now."""
+        new = np.flatnonzero(mask & (mgr.x_onset > 0.0) & (mgr.t_onset >= t0) & (mgr.t_onset < t0 + mgr.dt))
+        out = []
+        for p in new.tolist():
+            if self._flagged_at.get(p) == float(mgr.t_onset[p]):
+                continue
+            x = float(mgr.x_onset[p])
+            g = mgr._group_of[p]
+            pos = mgr._pos[p]
+            onset = {k: v[pos:pos + 1] for k, v in mgr._onset[g].items()}
+            with np.errstate(all="ignore"):  # a contact found metres deep: its energy may overflow (flagged)
+                stored = float(elastic_energy(mgr._groups[g], np.array([x]), onset)[0])  # as ContactManager.stored_energy
+            approach = 0.5 * float(mgr.m_eff[p]) * max(float(mgr.v_n_in[p]) ** 2, V_ONSET_MIN ** 2)
+            if stored <= ENERGY_GAIN_RTOL * approach:  # (a NaN or inf energy is flagged)
+                continue
+            self._flagged_at[p] = float(mgr.t_onset[p])
+            note = (f"contact found {x:.3g} m deep at its onset (dt = {mgr.dt:g} s): its elastic energy there, "
+                    f"{stored:.3g} J, was never worked for ({stored / approach:.3g} of its approach energy "
+                    f"{approach:.3g} J): {why}")
+            mgr.flag_contact(p, note, float(mgr.t_onset[p]))
+            self.count += 1
+            out.append(p)
+            if p not in self._warned:
+                self._warned.add(p)
+                warnings.warn(f"pair {p} {names[p]}: {note} (warned once per pair; adapter.deep_onsets counts "
+                              "them)", ValidityWarning, stacklevel=stacklevel)
+        return out

@@ -109,8 +109,8 @@ import mujoco
 import numpy as np
 
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
-from engines._contacts.state import CENTRED_RTOL, ENERGY_GAIN_RTOL, V_ONSET_MIN, lever_terms_free
-from engines._contacts.balance import elastic_energy
+from engines._contacts.state import CENTRED_RTOL, lever_terms_free
+from engines._contacts.balance import DeepOnsets
 from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box, sphere_plane, sphere_sphere
 from engines._sweep import sweep
@@ -649,10 +649,8 @@ class MujocoAdapter(EngineAdapter):
         # the adapter's own conditions for the resting step in one call (engines.mujoco._resting.eligible)
         self._fused_static = bool(self.compiled and not self._slow and self._fast.index.size and not self._shared
                                   and not self._any_link)
-        #: contacts found deep at their onset on a link (flagged; _check_deep_onsets)
-        self.deep_onsets = 0
-        self._deep_warned: set[int] = set()
-        self._deep_flagged_at: dict[int, float] = {}
+        #: contacts found deep at their onset on a link (flagged; _check_deep_onsets, engines._contacts.balance)
+        self._deep = DeepOnsets()
         #: number of engine steps run through :meth:`step`
         self.steps = 0
         #: the manager's step-averaged forces of the last step (None: no candidate)
@@ -1123,40 +1121,22 @@ class MujocoAdapter(EngineAdapter):
         if not self._any_link:
             return
         mgr = self.manager
-        new = np.flatnonzero(self._link_pairs & mgr._island_contact & (mgr.x_onset > 0.0)
-                             & (mgr.t_onset >= t0) & (mgr.t_onset < t0 + mgr.dt))
-        for p in new.tolist():
-            if p in self._deep_flagged_at and self._deep_flagged_at[p] == float(mgr.t_onset[p]):
-                continue
-            x = float(mgr.x_onset[p])
-            law = mgr._groups[mgr._group_of[p]]
-            pos = mgr._pos[p]
-            onset = {k: v[pos:pos + 1] for k, v in mgr._onset[mgr._group_of[p]].items()}
-            stored = float(elastic_energy(law, np.array([x]), onset)[0])  # as ContactManager.stored_energy
-            m = float(mgr.m_eff[p])
-            approach = 0.5 * m * max(float(mgr.v_n_in[p]) ** 2, V_ONSET_MIN ** 2)
-            if stored <= ENERGY_GAIN_RTOL * approach:
-                continue
-            self._deep_flagged_at[p] = float(mgr.t_onset[p])
-            integ = int(self.model.opt.integrator)
-            why = ("MuJoCo's RK4 moved the link into overlap within a step the contact's free flight did not "
-                   "predict (the other forces' change inside the step, which RK4's stages follow and the free "
-                   "flight holds at the step start: a joint limit engaging, a fast-turning link; a control "
-                   "written by mjcb_control); take a smaller timestep"
-                   if integ == int(mujoco.mjtIntegrator.mjINT_RK4) else
-                   "the engine moved the bodies into overlap within a step the contact's free flight did not "
-                   "predict (semi-implicit Euler moves a body by dt v_end, dt^2/2 a further than the free flight; "
-                   "the other forces' change inside the step: a joint limit engaging, a fast-turning link; a "
-                   "control written by mjcb_control); take a smaller timestep")
-            note = (f"contact found {x:.3g} m deep at its onset (dt = {mgr.dt:g} s): its elastic energy there, "
-                    f"{stored:.3g} J, was never worked for ({stored / approach:.3g} of its approach energy "
-                    f"{approach:.3g} J): {why}")
-            mgr.flag_contact(p, note, float(mgr.t_onset[p]))
-            self.deep_onsets += 1
-            if p not in self._deep_warned:
-                self._deep_warned.add(p)
-                warnings.warn(f"pair {p} {self.pair_names[p]}: {note} (warned once per pair; adapter.deep_onsets "
-                              "counts them)", ValidityWarning, stacklevel=4)
+        integ = int(self.model.opt.integrator)
+        why = ("MuJoCo's RK4 moved the link into overlap within a step the contact's free flight did not "
+               "predict (the other forces' change inside the step, which RK4's stages follow and the free "
+               "flight holds at the step start: a joint limit engaging, a fast-turning link; a control "
+               "written by mjcb_control); take a smaller timestep"
+               if integ == int(mujoco.mjtIntegrator.mjINT_RK4) else
+               "the engine moved the bodies into overlap within a step the contact's free flight did not "
+               "predict (semi-implicit Euler moves a body by dt v_end, dt^2/2 a further than the free flight; "
+               "the other forces' change inside the step: a joint limit engaging, a fast-turning link; a "
+               "control written by mjcb_control); take a smaller timestep")
+        self._deep.check(mgr, self._link_pairs & mgr._island_contact, t0, why, self.pair_names, stacklevel=5)
+
+    @property
+    def deep_onsets(self) -> int:
+        """Contacts found deep at their onset on a link, flagged (:meth:`_check_deep_onsets`)."""
+        return self._deep.count
 
     def _line_mode(self, k: int, busy) -> str:
         """Line or point contacts for narrow geom pair k (a capsule or

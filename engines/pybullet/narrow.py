@@ -99,6 +99,10 @@ class LinkShape:
     rot: np.ndarray
     vertices: np.ndarray | None = field(default=None, repr=False)
     margin: float = 0.0
+    #: a plane that is a box's face (:func:`floor_face`): the box's half-extents
+    #: along the shape frame's axes (3,) [m], inf along the normal; points whose
+    #: foot on the plane lies beyond them touch nothing. None: an unbounded plane.
+    face: np.ndarray | None = None
 
     def extent(self) -> float:
         """The shape's bounding radius about its frame's origin [m] (slot matching, reach bounds)."""
@@ -135,6 +139,109 @@ def ellipsoid_vertices(semi_axes, n: int = 12) -> np.ndarray:
     p = np.unique(np.round(np.concatenate(faces), 12), axis=0)
     p /= np.linalg.norm(p, axis=1)[:, None]
     return p * np.asarray(semi_axes, dtype=float)
+
+
+#: pybullet's URDF loader makes a ``<cylinder>`` collision (without
+#: ``URDF_USE_IMPLICIT_CYLINDER``) a convex hull of two rings of vertices at
+#: z = +-length/2, radius r, about the shape frame's z (measured on
+#: pybullet_data's racecar.urdf wheels, r 0.05 m, length 0.045 m: 64 vertices,
+#: 32 a ring, radii 0.0499875-0.05 m in float32, collision margin 1 mm).
+#: :func:`ring_prism` recognises it when every vertex lies on one of the two
+#: rings within this share of r [-] (float32 rounding is 2.5e-4 of r there;
+#: a coarser polygon or an off-axis vertex is 1e-2 of r or more away).
+RING_RTOL = 1e-3
+#: ... and with at least this many vertices a ring [-] (an octagonal prism
+#: and finer: its facets lie within r (1 - cos(pi/8)) = 0.08 r of the circle).
+RING_MIN = 8
+
+
+def ring_prism(vertices) -> tuple[float, float] | None:
+    """(radius [m], half-length [m]) when ``vertices`` (n, 3) [m] are a
+    cylinder's two rings about the frame's z (pybullet's convex hull of a
+    URDF cylinder, ``RING_RTOL``, ``RING_MIN``): each ring the same polygon
+    (same angles) at z = -h and +h, all at radius r; else None. The radius
+    is the rings' largest (the cylinder's: the vertices lie on it)."""
+    v = np.asarray(vertices, dtype=float).reshape(-1, 3)
+    n = v.shape[0]
+    if n < 2 * RING_MIN or n % 2:
+        return None
+    rho = np.hypot(v[:, 0], v[:, 1])
+    r = float(rho.max())
+    h = float(np.abs(v[:, 2]).max())
+    if not (r > 0.0 and h > 0.0):
+        return None
+    tol = RING_RTOL * r
+    if np.any(np.abs(rho - r) > tol) or np.any(np.abs(np.abs(v[:, 2]) - h) > tol):
+        return None
+    top, bottom = v[v[:, 2] > 0.0], v[v[:, 2] < 0.0]
+    if top.shape[0] != bottom.shape[0]:
+        return None
+    # the same polygon on both rings: each top vertex has a bottom one above it
+    gap = np.linalg.norm(top[:, None, :2] - bottom[None, :, :2], axis=2).min(axis=1)
+    if np.any(gap > tol):
+        return None
+    return r, h
+
+
+def as_cylinder(shape: LinkShape) -> LinkShape:
+    """``shape`` itself, or, when it is a mesh whose hull is a URDF cylinder's
+    rings (:func:`ring_prism`), the cylinder it stands for (same frame).
+    Why: a lying cylinder's hull touches a plane along a facet's edge or on a
+    whole facet, where the mesh's local fit has only two rings of vertices
+    and cannot tell the curvature along the axis: the fit of the racecar's
+    wheel gave a support point 1,024 m beyond its vertex (a contact found
+    1,024 m deep) and launched the car at 64 m/s (docs/engines.md). The
+    cylinder's side carries the line law, its rims the rim points, as a
+    cylinder geom (URDF_USE_IMPLICIT_CYLINDER) does."""
+    if shape.kind != "mesh" or shape.vertices is None:
+        return shape
+    found = ring_prism(shape.vertices)  # getMeshData's vertices are scaled already
+    if found is None:
+        return shape
+    return LinkShape("cylinder", np.array(found), shape.pos, shape.rot)
+
+
+#: A fixed box is a floor for a narrow pair (:func:`floor_face`) when both
+#: half-extents of its face toward body 1 are at least this many times body
+#: 1's bounding radius [-]: pybullet_data's plane.urdf is a 200 x 200 x 10 m
+#: box (its collision is no plane), the racecar's wheels 0.067 m.
+FLOOR_SHARE = 10.0
+
+
+def floor_face(box: LinkShape, box_pose, other: LinkShape, other_pose) -> LinkShape:
+    """``box`` itself, or, when it is a box whose face toward ``other`` (its
+    shape frame's origin at setup) is a floor for it (``FLOOR_SHARE``), that
+    face as a bounded plane (``LinkShape.face``): a shape's support features
+    on it in closed form (:func:`features_on_plane`, a lying side's line
+    contact) instead of pybullet's one closest point of the pair, whose
+    curvature on a flat face and a cylinder's side is a line contact no point
+    law carries. pose: (com (3,), rot (3, 3)) of each link at setup."""
+    if box.kind != "box":
+        return box
+    c_box, R_box = _world(box, box_pose)
+    c_other, _ = _world(other, other_pose)
+    half = np.asarray(box.size, dtype=float)
+    d = R_box.T @ (c_other - c_box)
+    axis = int(np.argmax(np.abs(d) - half))  # the face the other shape lies beyond
+    sign = 1.0 if d[axis] >= 0.0 else -1.0
+    inface = [a for a in range(3) if a != axis]
+    if float(np.min(half[inface])) < FLOOR_SHARE * other.extent():
+        return box
+    normal = np.zeros(3)
+    normal[axis] = sign
+    face = half.copy()
+    face[axis] = math.inf
+    return LinkShape("plane", normal, box.pos + box.rot @ (sign * half[axis] * normal), box.rot, face=face)
+
+
+def on_face(plane: LinkShape, c2, R2, points) -> np.ndarray:
+    """(k,) bool: the points (k, 3) [m] (world) whose foot on ``plane`` (frame
+    ``c2``, ``R2`` in the world) lies on its face (all True for an unbounded plane)."""
+    pts = np.asarray(points, dtype=float).reshape(-1, 3)
+    if plane.face is None:
+        return np.ones(pts.shape[0], bool)
+    local = (pts - c2) @ R2
+    return np.all(np.abs(local) <= plane.face, axis=1)
 
 
 def msf_shape(shape: LinkShape, edge_radius: float | None = None):
@@ -325,7 +432,7 @@ def detect(np_: NarrowPair, pose1, pose2, reach: float, client: int):
     if np_.method == "plane":
         nz = R2 @ (np.asarray(s2.size, float) / np.linalg.norm(s2.size))
         x, p1 = features_on_plane(s1, c1, R1, c2, nz)
-        keep = x > -reach
+        keep = (x > -reach) & on_face(s2, c2, R2, p1)
         x, p1 = x[keep], p1[keep]
         normal = np.repeat(nz[None], x.size, axis=0)
         return x, p1 + 0.5 * x[:, None] * normal, normal
@@ -370,8 +477,10 @@ def smooth_point(geom, shape: LinkShape, frame, point, outward):
     surface the mesh stands for (msf_contact.shapes.Mesh.support: the fitted
     surface; an Ellipsoid given as the mesh's curvature: its exact point with
     that normal), and the distance it moved outward [m]; other shapes: as they
-    are. frame: the shape's (origin, rotation) in the world; point (3,),
-    outward (3,) world."""
+    are. A move of more than SMOOTH_REACH either way is no facet's sagitta
+    (getClosestPoints was asked that far beyond the vertices) but a fit the
+    vertices do not support: the vertex is kept. frame: the shape's (origin,
+    rotation) in the world; point (3,), outward (3,) world."""
     if shape.kind != "mesh":
         return point, 0.0
     pos, rot = frame
@@ -383,8 +492,11 @@ def smooth_point(geom, shape: LinkShape, frame, point, outward):
     else:
         return point, 0.0
     w = float((q - local) @ out)
+    if not abs(w) <= SMOOTH_REACH:
+        return point, 0.0
     return pos + rot @ q, w
 
 
-__all__ = ["LinkShape", "NarrowPair", "NARROW_KINDS", "NARROW_SLOTS", "assign_plane_slots", "detect", "ellipsoid_vertices",
+__all__ = ["LinkShape", "NarrowPair", "NARROW_KINDS", "NARROW_SLOTS", "as_cylinder", "assign_plane_slots", "detect",
+           "ellipsoid_vertices", "floor_face", "on_face", "ring_prism",
            "features_on_plane", "msf_shape", "pair_method", "slots_of", "sphere_closest"]
