@@ -228,7 +228,13 @@ class SlotMatcher:
         approach [m] (k,) (deepest first when slots run out); busy: (n,) bool,
         slots the manager still holds (in contact, or a correction pending).
         A busy slot keeps its nearest point within the matching distance; the
-        other points take free slots, deepest first.
+        other points take free slots, deepest first. A pair of one slot
+        takes the deepest point, busy or not, however far it moved: the
+        engine's one point is the pair's contact (a hexagonal prism lying on
+        a face: pybullet's closest point jumps between the face's four
+        vertices, 45-50 mm apart; left out, the busy slot read "no point",
+        x = -1 m, and the prism fell through the floor, pybullet and main
+        alike).
         """
         pts = np.asarray(local_points, dtype=float).reshape(-1, 3)
         k = pts.shape[0]
@@ -246,7 +252,7 @@ class SlotMatcher:
                     break
                 if out[i] < 0 and not taken[s]:
                     out[i], taken[s] = s, True
-        free = [s for s in range(self.n) if not taken[s] and not busy[s]]
+        free = [s for s in range(self.n) if not taken[s] and (not busy[s] or self.n == 1)]
         for i in order:
             if out[i] < 0 and free:
                 out[i] = free.pop(0)
