@@ -30,7 +30,7 @@ bench: $(STAMP)
 pile200: $(STAMP)
 	mkdir -p out
 	for e in mujoco pybullet; do \
-		$(PY) scripts/pile.py --engine $$e --n 200 --side 6 --steps 6000 --every 50 --rest-steps 100 \
+		$(PY) scripts/pile.py --engine $$e --n 200 --side 6 --steps 6000 --every 50 --rest-steps 100 --pour low \
 			--out out/pile200_$$e.json 2> out/pile200_$$e.progress || exit 1; done
 
 docs: $(STAMP)
