@@ -17,7 +17,12 @@ account unless ``--euler``).
 Printed: CPU seconds of the env steps, the root height's range, MuJoCo's
 bad-acceleration count, the records and how many are flagged (with their
 notes' kinds), the rest account's start and end, the steps above its bound
-(``RestEnergy.gains``) and the largest of them. Nothing is written.
+(``RestEnergy.gains``), the largest rise among them and the largest excess
+over the bound (rise - allowed) with its step. The two differ: in a step
+where the walker still lands on its feet the bound's semi-implicit term
+(dt/2 |P_end - P_start| of gravity and the joint springs) is most of the rise
+(HalfCheetah-v5 seed 1: a rise of 0.61 J of which 0.598 J allowed). Nothing
+is written.
 """
 
 from __future__ import annotations
@@ -120,8 +125,11 @@ def main(argv=None) -> int:
         print(f"records {len(adapter.records)}, flagged {flagged}: {dict(kinds)}")
     if account is not None:
         E = np.array(E)
+        over = max(account.gains, key=lambda g: g[1] - g[2], default=(0, 0.0, 0.0))
         print(f"rest account {E[0]:.4f} -> {E[-1]:.4f} J over {E.size - 1} mj_steps; steps above the bound "
-              f"{len(account.gains)}, largest {max((g[1] for g in account.gains), default=0.0):.3g} J")
+              f"{len(account.gains)}, largest rise {max((g[1] for g in account.gains), default=0.0):.3g} J; "
+              f"largest excess over the bound {over[1] - over[2]:.3g} J (rest mj_step {over[0]}: rise {over[1]:.3g} "
+              f"J, allowed {over[2]:.3g} J)")
     else:
         print("rest account: not read (RK4 without the MSF adapter; add --euler)")
     print(f"warnings {len(caught)}")
