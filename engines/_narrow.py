@@ -18,6 +18,7 @@ body 1; body 1's outward normal at the point is -n, body 2's is +n.
 
 from __future__ import annotations
 
+import copy
 import math
 import warnings
 from dataclasses import dataclass
@@ -757,9 +758,13 @@ class SideLine:
         frozen there too, a capsule come to rest from 2 deg kept an end's
         share of 0.025 deg and rested 6.3 um deep at that end, 1.9 um at the
         other; a pose frozen at every onset had left the objects scenario's
-        resting cylinder with a 3.4 mJ gain). ``refresh(law)`` is called
-        after each change (the manager's ContactManager.refresh_law: the
-        compiled constants follow)."""
+        resting cylinder with a 3.4 mJ gain). ``refresh(law, before)`` is
+        called after each change with the law as it was (the manager's
+        ContactManager.refresh_law: the compiled constants follow, and a
+        contact in progress keeps its elastic energy across the change, its
+        approach moving instead: the pose taken up when Hopper-v5's foot
+        settled raised an end's force at a fixed approach from 249 to 754 N,
+        0.33 J no force worked for, before)."""
         ends = self.ends
         per = [None] * n_slots
         for i in range(2):
@@ -767,9 +772,10 @@ class SideLine:
                 x = float(ends.x[i])
                 per[i] = (x, ends.lowest[i] + 0.5 * x * ends.normal, ends.normal.copy())
                 continue
+            before = copy.copy(self.law[i])  # the contact in progress keeps its energy (refresh_law)
             self.law[i].set_pose(ends.tilt, float(ends.rise[i]), float(nWn[i, i]), float(nWn[i, 1 - i]),
                                  float(ends.x[1 - i] - ends.x[i]))
-            refresh(self.law[i])
+            refresh(self.law[i], before)
             x = float(ends.x[i])
             per[i] = (x, ends.lowest[i] + 0.5 * x * ends.normal, ends.normal.copy())
         return per

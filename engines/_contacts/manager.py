@@ -26,8 +26,8 @@ from .islands import TOUCH_TOL, island_lever, islands, step_island
 from .resting import settle_island
 from .state import (
     L_G0, L_ON, L_W01, L_W11, L_XREF, NL, NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES,
-    residual_indentation,
-    _cross, _dot, _name,
+    ENERGY_APPROACH_RTOL, approach_of_energy, elastic_energy, residual_indentation,
+    _cross, _dot, _name, _tangent_basis,
 )
 
 
@@ -208,6 +208,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self._island_contact = np.zeros(P, bool)  # the pair's current contact was in an island at some step
         self._held_force = np.zeros((P, 3))  #: the step-averaged forces held into the next step [N] (P, 3)
         self.J = z3.copy()  #: timing-correction impulse applied in the last step, removed in the next [N s] (P, 3)
+        self._normal = z3.copy()  # the unit normal of the pair's last step (refresh_law's tangent axes; 0: none yet)
         self.dv_corr = z3.copy()  #: W J: the engine's contact-point velocity offset it causes [m/s] (P, 3)
         self.dvc_corr = z3.copy()  #: W_com J [m/s] (P, 3)
         #: angular impulse n x PD / 2 of the moving contact point in the last step, on both bodies [N m s] (P, 3)
@@ -313,6 +314,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         if code:
             self._invalid(code, row, pair, x, n, point, v, vc, W, Wc, a)
         n = n_unit
+        self._normal[pair] = n
         x = self._own_gaps(pair, x, n, v, a)
         L = None
         lev = getattr(kin, "lever", None)
@@ -404,16 +406,63 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         pp = np.arange(len(self.pairs))
         return IslandBalance.stored(self, pp) + IslandBalance.finished(self, pp)
 
-    def refresh_law(self, law: ForceLaw) -> None:
+    def refresh_law(self, law: ForceLaw, before: ForceLaw | None = None) -> None:
         """The compiled kernel's constants of ``law`` taken again from it: a
         law whose constants change between steps (engines._narrow.SideEndLaw's
         pose, set_pose) is refreshed after each change so that the compiled
-        path computes what its numpy methods do. A law no pair has: nothing."""
+        path computes what its numpy methods do. A law no pair has: nothing.
+
+        ``before``: the law as it was before the change (a copy). Its pairs in
+        contact then keep their elastic energy, not their approach: x moves to
+        the approach at which ``law`` stores what ``before`` stored at x
+        (state.approach_of_energy). A change of a law's constants is no force
+        acting on the bodies, so it may not change the energy the contact holds:
+        a capsule side's end share W_end grows as the side turns flat at a
+        fixed approach of the end (SideEndLaw), and the pose held through a
+        contact in motion is taken up when the contact settles; gymnasium's
+        Hopper-v5 turned its foot from 3.9 to 0.63 deg over 111 ms of such a
+        contact, its end's force at x = 2.06 mm went from 249 N to 754 N in
+        one step and RestEnergy rose 0.33 J (issue 13, docs/engines.md). The
+        tangential spring keeps its energy k |s|^2 / 2 along each of the law's
+        axes the same way (s scaled by sqrt(k_before / k_now)). The
+        surface still recovering after a force-zero end keeps its approach
+        x_r (it decays at E'/(3 eta'_E), ~1 ms for rubber)."""
         g = id(law)
-        k = self._kidx.get(g) if g in self._groups else None
+        if g not in self._groups:
+            return
+        k = self._kidx.get(g)
         if k is not None:
             self._kernel_law[g] = kl = kernel_law(law)
             self._kLC[k] = kl[1]
+        if before is None:
+            return
+        rows = np.flatnonzero((self._group_of == g) & self.active & (self.x > 0.0))
+        if rows.size == 0:
+            return
+        o = {key: arr[self._pos[rows]] for key, arr in self._onset[g].items()}
+        x = self.x[rows]
+        E = elastic_energy(before, x, o)
+        moved = np.abs(elastic_energy(law, x, o) - E) > ENERGY_APPROACH_RTOL * E  # a pose that changed nothing: skip
+        if not np.any(moved):
+            return
+        m = np.flatnonzero(moved)
+        q, om = rows[m], {key: arr[m] for key, arr in o.items()}
+        self.x[q] = x1 = approach_of_energy(law, E[m], x[m], om)
+        # the tangential spring likewise keeps k |s|^2 / 2 along each of the law's axes (its stiffness
+        # follows the law's constants too: the Hopper's foot end's held 142 N became 444 N at the same s)
+        n = self._normal[q]
+        ok = np.linalg.norm(n, axis=1) > 0.0
+        if not np.any(ok):
+            return
+        q, n, x0, x1 = q[ok], n[ok], x[m][ok], x1[ok]
+        om = {key: arr[ok] for key, arr in om.items()}
+        k0, _ = before.tangential_stiffness(x0, om)
+        k1, _ = law.tangential_stiffness(x1, om)
+        t1, t2 = _tangent_basis(n)
+        T = np.stack([t1, t2], axis=1)  # (k, 2, 3): the law's axes a, b as the kernels take them
+        s2 = np.einsum("kai,ki->ka", T, self.s[q])
+        s2 *= np.sqrt(np.where(k1 > 0.0, k0 / np.where(k1 > 0.0, k1, 1.0), 1.0))
+        self.s[q] = np.einsum("ka,kai->ki", s2, T) + _dot(self.s[q], n)[:, None] * n
 
     def set_law(self, pair_index: int, law: ForceLaw) -> None:
         """Give pair ``pair_index`` the law ``law`` from its next onset on (a

@@ -482,6 +482,38 @@ def elastic_energy(law, x, onset) -> np.ndarray:
     return np.sum(F * (2.0 * x[:, None] * _GL_S[None, :]) * _GL_W[None, :], axis=1)
 
 
+#: relative tolerance of approach_of_energy's Newton iteration on the elastic
+#: energy (two orders above the double's round-off of E_el's 8-point sum)
+ENERGY_APPROACH_RTOL = 1e-12
+#: its iteration cap (E_el is convex and increasing in x: Newton converges
+#: monotonically from its second iterate; 3-6 iterations measured)
+ENERGY_APPROACH_MAX = 50
+
+
+def approach_of_energy(law, E, x0, onset) -> np.ndarray:
+    """The approach x [m] (k,) at which ``law`` stores the elastic energy E [J]
+    (k,), E_el(x) = E (:func:`elastic_energy`), by Newton from x0 (k,) [m]
+    with dE_el/dx = F_n(x, 0) (x0 > 0 where E > 0); E <= 0 gives 0. Used when a law's constants
+    change under a contact in progress (ContactManager.refresh_law): the
+    contact keeps its energy, not its approach."""
+    E = np.asarray(E, dtype=float)
+    x = np.maximum(np.asarray(x0, dtype=float).copy(), 0.0)
+    pos = E > 0.0
+    x[~pos] = 0.0
+    for _ in range(ENERGY_APPROACH_MAX):
+        r = np.flatnonzero(pos)
+        if r.size == 0:
+            break
+        o = {key: np.asarray(val, dtype=float)[r] for key, val in onset.items()}
+        err = elastic_energy(law, x[r], o) - E[r]
+        F = law.contact_normal_force(x[r], np.zeros(r.size), o)
+        ok = np.abs(err) <= ENERGY_APPROACH_RTOL * E[r]
+        xn = np.where(F > 0.0, x[r] - err / np.where(F > 0.0, F, 1.0), 2.0 * x[r])  # F = 0 only at x = 0
+        x[r] = np.where(ok, x[r], np.where(xn > 0.0, xn, 0.5 * x[r]))
+        pos[r[ok]] = False
+    return x
+
+
 def relax(mgr, p, x0, x_eng, n, v, settle, io=None) -> np.ndarray:
     """The resting relaxation of RELAX_DOC for rows p (k,): x0 (k,) [m] the
     manager's x, x_eng (k,) the engine's, n (k, 3), v (k, 3) [m/s] the
