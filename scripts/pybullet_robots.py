@@ -89,17 +89,23 @@ def dumbbell(shape: str, dt: float, seconds: float) -> str:
         pb.disconnect(c)
 
 
+def _ant_put_down(c: int):
+    """(robots, adapter): ant.xml in client ``c`` with MSF on its shapes
+    (mu = MU), its lowest shape moved to 0.5 mm above the floor."""
+    robots, floor, pairs, shapes = load_mjcf_with_msf_floor(
+        c, os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml"), PAIR, mu=MU)
+    u = robots[0]
+    gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
+    pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
+    pb.resetBasePositionAndOrientation(u, [pos[0], pos[1], pos[2] - gap + 5e-4], orn, physicsClientId=c)
+    return robots, PybulletAdapter(c, pairs, link_shapes=shapes, limit_trial=TRIAL)
+
+
 def ant(dt: float, seconds: float) -> str:
     """ant.xml placed with its lowest shape 0.5 mm above the floor, no torques."""
     c = scenes.new_client(dt, gravity=9.81)
     try:
-        robots, floor, pairs, shapes = load_mjcf_with_msf_floor(
-            c, os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml"), PAIR, mu=MU)
-        u = robots[0]
-        gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
-        pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
-        pb.resetBasePositionAndOrientation(u, [pos[0], pos[1], pos[2] - gap + 5e-4], orn, physicsClientId=c)
-        ad = PybulletAdapter(c, pairs, link_shapes=shapes, limit_trial=TRIAL)
+        robots, ad = _ant_put_down(c)
         return f"ant at rest, dt {dt:g} s, {seconds:g} s: " + watch(c, ad, robots, seconds, dt)
     finally:
         pb.disconnect(c)
@@ -111,13 +117,7 @@ def feet(dt: float, seconds: float) -> str:
     its legs splay and it drops onto its ankle limits."""
     c = scenes.new_client(dt, gravity=9.81)
     try:
-        robots, floor, pairs, shapes = load_mjcf_with_msf_floor(
-            c, os.path.join(pybullet_data.getDataPath(), "mjcf", "ant.xml"), PAIR, mu=MU)
-        u = robots[0]
-        gap = min(r[8] for r in pb.getClosestPoints(u, floor, 10.0, physicsClientId=c))
-        pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
-        pb.resetBasePositionAndOrientation(u, [pos[0], pos[1], pos[2] - gap + 5e-4], orn, physicsClientId=c)
-        ad = PybulletAdapter(c, pairs, link_shapes=shapes, limit_trial=TRIAL)
+        robots, ad = _ant_put_down(c)
         return f"ant put down on its feet, dt {dt:g} s, {seconds:g} s, mu {MU}, trial {TRIAL}: " + _run(ad, robots, dt,
                                                                                                         seconds)
     finally:
