@@ -974,7 +974,9 @@ class BoxOnPlane:
         beta, over every corner that can touch with it: a face falling flat
         has its four corners in one collision, each with a quarter of the
         mass by symmetry, as the line law with the whole mass needs).
-        ``refresh(law)`` after each change (ContactManager.refresh_law)."""
+        ``refresh(law, before)`` after each change with the law as it was
+        (ContactManager.refresh_law: a settled corner's contact keeps its
+        elastic energy across the change, as SideLine.slots' ends do)."""
         c = self.corners
         moving = np.asarray(moving, dtype=bool)[:self.n]
         per = [None] * self.n
@@ -988,6 +990,7 @@ class BoxOnPlane:
         if not self.lines:  # the corners' sphere laws: no pose
             return per
         posed = [s for s in range(self.n) if self.corner[s] >= 0 and not moving[s]]
+        before = {s: copy.copy(self.law[s]) for s in posed}  # a settled corner keeps its energy (refresh_law)
         for s in posed:
             self.law[s].set_pose(*self._pose(s))
         for s in posed:
@@ -1004,5 +1007,5 @@ class BoxOnPlane:
                     beta = min(other / mine, 1.0) if mine > 0.0 else 0.0
                     total += beta * float(nWn[s, j])
                 law.mass_factor = w_own / total if total > 0.0 else 1.0
-            refresh(law)
+            refresh(law, before[s])
         return per
