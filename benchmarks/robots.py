@@ -40,7 +40,7 @@ SEED = 13
 MODELS = ("ant.xml", "humanoid.xml")
 
 
-def _variant(name: str, msf: bool):
+def _variant(name: str, msf: bool, mu=None):
     import mujoco
     import pybullet_data
 
@@ -49,7 +49,7 @@ def _variant(name: str, msf: bool):
     from msf_contact import ContactPair, preset
 
     path = os.path.join(pybullet_data.getDataPath(), "mjcf", name)
-    model, data, pairs = load_with_msf_floor(path, ContactPair(preset("natural-rubber"), preset("steel")))
+    model, data, pairs = load_with_msf_floor(path, ContactPair(preset("natural-rubber"), preset("steel")), mu=mu)
     if model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:  # the module docstring
         model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
     if not msf:  # the same model with MuJoCo's own contact: no exclusion
@@ -144,11 +144,12 @@ def standing(name: str, steps: int = STAND_STEPS) -> dict:
 SWEEP_SEEDS = (1, 2, 3, 4)
 
 
-def rest_sweep(name: str, seed: int, steps: int = STEPS) -> dict:
+def rest_sweep(name: str, seed: int, steps: int = STEPS, mu=None) -> dict:
     """MSF only: ``steps`` of torques seeded ``seed`` (as :func:`measure`),
     then ``steps`` at rest under RestEnergy: the rest steps above its bound
-    and the largest such rise [J], the account at the rest's start and end
-    [J] (issue 13: no rest step above the bound across torque seeds)."""
+    and the largest such rise and excess over the bound [J], the account at
+    the rest's start and end [J] (issue 13: no rest step above the bound
+    across torque seeds). mu: the feet's Coulomb cap (load_with_msf_floor's)."""
     import warnings
 
     import mujoco
@@ -156,7 +157,7 @@ def rest_sweep(name: str, seed: int, steps: int = STEPS) -> dict:
     from engines.mujoco import installed
     from engines.mujoco.robots import RestEnergy
 
-    model, data, adapter = _variant(name, True)
+    model, data, adapter = _variant(name, True, mu)
     rng = np.random.default_rng(seed)
     lo, hi = model.actuator_ctrlrange[:, 0], model.actuator_ctrlrange[:, 1]
     with warnings.catch_warnings():
@@ -174,6 +175,7 @@ def rest_sweep(name: str, seed: int, steps: int = STEPS) -> dict:
     return {"name": "robots-rest-sweep", "engine": "mujoco", "model": name, "seed": seed, "steps": steps,
             "rest_energy_J": [start, account.total], "rest_unexplained_steps": len(account.gains),
             "rest_unexplained_max_J": max((g[1] for g in account.gains), default=0.0),
+            "rest_excess_max_J": max((g[1] - g[2] for g in account.gains), default=0.0), "mu": mu,
             "rest_unexplained_first": [list(g) for g in account.gains[:3]], "jumps": adapter.jumps}
 
 

@@ -13,6 +13,10 @@ account unless ``--euler``).
     .venv/bin/python scripts/gym_check.py Ant-v5 --torque-steps 300 --rest-steps 200
     .venv/bin/python scripts/gym_check.py Walker2d-v5 --euler --torque-steps 150 --rest-steps 300
     .venv/bin/python scripts/gym_check.py Hopper-v5 --builtin --euler
+    .venv/bin/python scripts/gym_check.py HalfCheetah-v5 --mu engine --seed 2
+
+``--mu``: the feet's Coulomb cap (none, the paper's law, by default; engine:
+the friction MuJoCo's own contact gives each pair; or a number).
 
 Printed: CPU seconds of the env steps, the root height's range, MuJoCo's
 bad-acceleration count, the records and how many are flagged (with their
@@ -42,15 +46,42 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 PLANAR = ("Hopper", "Walker2d", "HalfCheetah")
 
 
-def main(argv=None) -> int:
+def gym_msf(name: str, mu=None):
+    """(env, model, data, pairs): the gymnasium environment ``name`` reset with
+    seed 0 and MSF on every body-floor pair (module docstring; mu: the feet's
+    Coulomb cap, None (the paper's law), a number, or engines.mujoco.robots.
+    ENGINE_FRICTION for MuJoCo's own friction of each pair). ValueError if it
+    has no plane geom."""
     import gymnasium as gym
+    import mujoco
+
+    from engines.base import PairSpec
+    from engines.mujoco.robots import ENGINE_FRICTION, engine_friction
+    from msf_contact import ContactPair, Curvature, make_law, preset
+
+    kw = {} if name.startswith(("HalfCheetah", "Swimmer")) else {"terminate_when_unhealthy": False}
+    env = gym.make(name, **kw)
+    env.reset(seed=0)
+    model, data = env.unwrapped.model, env.unwrapped.data
+    planes = [g for g in range(model.ngeom) if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE]
+    if not planes:
+        raise ValueError(f"{name} has no plane geom to put MSF on")
+    pair = ContactPair(preset("natural-rubber"), preset("steel"))
+    pairs = []
+    for g in range(model.ngeom):
+        if model.geom_bodyid[g] != 0 and model.geom(g).name and (model.geom_contype[g] or model.geom_conaffinity[g]):
+            m = engine_friction(model, g, planes[0]) if mu == ENGINE_FRICTION else mu
+            pairs.append(PairSpec(model.geom(g).name, model.geom(planes[0]).name,
+                                  make_law("msf", pair, Curvature.sphere_on_plane(float(model.geom_size[g, 0])), mu=m)))
+    return env, model, data, pairs
+
+
+def main(argv=None) -> int:
     import mujoco
     import numpy as np
 
-    from engines.base import PairSpec
     from engines.mujoco import MujocoAdapter, installed
     from engines.mujoco.robots import RestEnergy
-    from msf_contact import ContactPair, Curvature, make_law, preset
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("env", help="a gymnasium MuJoCo environment, e.g. Ant-v5, Hopper-v5, Walker2d-v5, HalfCheetah-v5")
@@ -59,6 +90,8 @@ def main(argv=None) -> int:
     ap.add_argument("--seed", type=int, default=1, help="seed of the actions (the env is reset with seed 0)")
     ap.add_argument("--builtin", action="store_true", help="MuJoCo's own contact instead of MSF")
     ap.add_argument("--euler", action="store_true", help="run under Euler instead of the env's integrator")
+    ap.add_argument("--mu", default="none", help="the feet's Coulomb cap: none (the paper's law), engine (MuJoCo's "
+                    "own friction of each pair) or a number")
     a = ap.parse_args(argv)
     for name in ("torque_steps", "rest_steps"):
         if getattr(a, name) < 0:
@@ -66,21 +99,12 @@ def main(argv=None) -> int:
     if a.torque_steps + a.rest_steps == 0:
         ap.error("--torque-steps + --rest-steps = 0: nothing to run")
 
-    kw = {} if a.env.startswith(("HalfCheetah", "Swimmer")) else {"terminate_when_unhealthy": False}
-    env = gym.make(a.env, **kw)
-    env.reset(seed=0)
-    model, data = env.unwrapped.model, env.unwrapped.data
+    try:
+        env, model, data, pairs = gym_msf(a.env, None if a.mu == "none" else a.mu if a.mu == "engine" else float(a.mu))
+    except ValueError as exc:
+        ap.error(str(exc))
     if a.euler:
         model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER
-    planes = [model.geom(g).name for g in range(model.ngeom) if model.geom_type[g] == mujoco.mjtGeom.mjGEOM_PLANE]
-    if not planes:
-        ap.error(f"{a.env} has no plane geom to put MSF on")
-    pair = ContactPair(preset("natural-rubber"), preset("steel"))
-    pairs = [PairSpec(model.geom(g).name, planes[0],
-                      make_law("msf", pair, Curvature.sphere_on_plane(float(model.geom_size[g, 0]))))
-             for g in range(model.ngeom)
-             if model.geom_bodyid[g] != 0 and model.geom(g).name
-             and (model.geom_contype[g] or model.geom_conaffinity[g])]
     z_index = 1 if a.env.startswith(PLANAR) else 2
     print(f"{a.env}: dt = {model.opt.timestep:g} s, frame_skip {env.unwrapped.frame_skip}, integrator "
           f"{mujoco.mjtIntegrator(model.opt.integrator).name}, {'built-in contact' if a.builtin else 'MSF'} "

@@ -31,6 +31,12 @@ steps had the contacts' balance above 1e-3 of the kinetic energy.
 
     .venv/bin/python scripts/rest_terms.py humanoid.xml --seed 13
     .venv/bin/python scripts/rest_terms.py ant.xml --seed 4 --rest-steps 200
+    .venv/bin/python scripts/rest_terms.py HalfCheetah-v5 --seed 2 --torque-steps 150 --rest-steps 300
+
+A gymnasium environment (a name without ``.xml``) is run as
+scripts/gym_check.py runs it (its XML and dt, MSF on every floor pair, the
+actions uniform in [-1, 1] through ``env.step``; Euler in place of its RK4
+as for the files, and --torque-steps and --rest-steps counted in env steps).
 """
 
 from __future__ import annotations
@@ -42,6 +48,7 @@ import warnings
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 TERMS = ("grav", "offset", "coriolis", "damping", "contacts", "constraints")
 
@@ -82,15 +89,23 @@ def main(argv=None) -> int:
     from msf_contact import ContactPair, preset
 
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("model", help="a file of pybullet_data/mjcf, e.g. ant.xml, humanoid.xml")
+    ap.add_argument("model", help="a file of pybullet_data/mjcf, e.g. ant.xml, humanoid.xml, or a gymnasium "
+                    "environment, e.g. HalfCheetah-v5")
     ap.add_argument("--torque-steps", type=int, default=1000)
     ap.add_argument("--rest-steps", type=int, default=1000)
     ap.add_argument("--seed", type=int, default=13)
     ap.add_argument("--unit-controls", action="store_true")
     ap.add_argument("--show", type=int, default=20, help="steps above the bound printed")
     a = ap.parse_args(argv)
-    model, data, pairs = load_with_msf_floor(os.path.join(pybullet_data.getDataPath(), "mjcf", a.model),
-                                             ContactPair(preset("natural-rubber"), preset("steel")))
+    env = None
+    if a.model.endswith(".xml"):
+        model, data, pairs = load_with_msf_floor(os.path.join(pybullet_data.getDataPath(), "mjcf", a.model),
+                                                 ContactPair(preset("natural-rubber"), preset("steel")))
+    else:
+        from gym_check import gym_msf
+
+        env, model, data, pairs = gym_msf(a.model)
+        a.rest_steps *= env.unwrapped.frame_skip
     if model.opt.integrator == mujoco.mjtIntegrator.mjINT_RK4:  # RestEnergy reads RK4 through the adapter; the
         model.opt.integrator = mujoco.mjtIntegrator.mjINT_EULER  # split is Euler's, as benchmarks/robots.py runs
     adapter = MujocoAdapter(model, data, pairs)
@@ -103,6 +118,9 @@ def main(argv=None) -> int:
         warnings.simplefilter("ignore")
         with installed(adapter):
             for _ in range(a.torque_steps):
+                if env is not None:  # as scripts/gym_check.py
+                    env.step(rng.uniform(-1.0, 1.0, env.action_space.shape))
+                    continue
                 data.ctrl[:] = rng.uniform(-1.0, 1.0, model.nu) if a.unit_controls else rng.uniform(lo, hi)
                 mujoco.mj_step(model, data)
             data.ctrl[:] = 0.0

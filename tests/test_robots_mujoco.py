@@ -608,3 +608,32 @@ def test_a_damped_links_contact_moves_as_the_engine_does(integrator):
     assert len(engine) > 200 and adapter.records  # it landed and rests
     internal, engine = np.array(internal), np.array(engine)
     assert np.abs(internal - engine).max() < DAMPED_RATE_RTOL * np.abs(engine).max()
+
+
+def test_the_feet_coulomb_cap_is_mujocos_own_pair_friction(tmp_path):
+    """load_with_msf_floor(mu=ENGINE_FRICTION): each pair's cap is the
+    friction MuJoCo's own contact uses for that geom pair, read from MuJoCo's
+    contact list of the same model with the floor let in (its mixing: the
+    higher priority's, else the larger), and mu is refused outside (0, inf)."""
+    from engines.mujoco.robots import ENGINE_FRICTION
+
+    xml = ('<mujoco><worldbody><geom name="floor" type="plane" size="5 5 .1" friction="0.8 .005 .0001"/>'
+           '<body name="a" pos="0 0 0.049"><freejoint/><geom name="ga" type="sphere" size=".05" friction="1.3"/></body>'
+           '<body name="b" pos="1 0 0.049"><freejoint/><geom name="gb" type="sphere" size=".05" friction="0.3"/></body>'
+           '<body name="c" pos="2 0 0.049"><freejoint/><geom name="gc" type="sphere" size=".05" friction="0.3" '
+           'priority="1"/></body></worldbody></mujoco>')
+    path = tmp_path / "three.xml"
+    path.write_text(xml)
+    own = mujoco.MjModel.from_xml_string(xml)
+    d = mujoco.MjData(own)
+    mujoco.mj_forward(own, d)
+    expected = {own.geom(int(max(c.geom1, c.geom2))).name: float(c.friction[0]) for c in d.contact[:d.ncon]}
+    assert expected == {"ga": 1.3, "gb": 0.8, "gc": 0.3}  # max, max, priority
+    pair = ContactPair(preset("natural-rubber"), preset("steel"))
+    _, _, pairs = load_with_msf_floor(str(path), pair, mu=ENGINE_FRICTION)
+    assert {p.body1: p.law.mu for p in pairs} == expected
+    _, _, pairs = load_with_msf_floor(str(path), pair)
+    assert all(p.law.mu is None for p in pairs)  # the paper's uncapped law unless asked
+    for bad in (0.0, -1.0, math.inf, "pybullet", True):
+        with pytest.raises(ValueError, match="mu"):
+            load_with_msf_floor(str(path), pair, mu=bad)

@@ -517,6 +517,11 @@ class MujocoAdapter(EngineAdapter):
         # the kinematic tree of each pair's two bodies (P, 2); -1: welded to the world
         self._trees = np.array([[model.body_treeid[p.body1], model.body_treeid[p.body2]] for p in self._pairs],
                                int).reshape(-1, 2)
+        #: velocity_offset() by replaying the last step without its timing corrections (exact under
+        #: every integrator, one more mj_step a call) instead of M^-1 J^T J at the end pose; the hook
+        #: then keeps each step's start state (engines.mujoco.robots.RestEnergy sets it)
+        self.exact_offset = False
+        self._step_start = None
         #: state jumps seen between steps (mj_resetData, qpos/qvel written, time set; _stepping)
         self.jumps = 0
         #: contacts a jump interrupted (no record)
@@ -854,16 +859,24 @@ class MujocoAdapter(EngineAdapter):
                 self._jump()
             self._in_hook = True
             self._unheld = None  # the generalised force of the step's forces not held (set by _compute)
+            self._step_start = self._start_state(data) if self.exact_offset else None
             try:
                 if self._compute():
+                    self._step_start = None  # applied by the resting step itself: not replayable
                     return  # the resting step applied its forces itself (engines.mujoco._resting: no pair
                     # read through Jacobians, so no known forces to tell)
             finally:
                 self._in_hook = False
+        before = data.qfrc_passive.copy() if computed and known is not None else None
+        self._apply_forces(model, data)
+        if before is not None:
+            known.applied(before, self._unheld)
+
+    def _apply_forces(self, model, data) -> None:
+        """Add the step's forces (kept by :meth:`_compute`) to ``data.qfrc_passive``."""
         # the lever arm from each body's centre of mass is held fixed in world axes
         # over the step (the contact point stays under the ball; the manager's W
         # assumes it), so every RK4 stage gets the same force and moment
-        before = data.qfrc_passive.copy() if computed and known is not None else None
         if self._apply_fast is not None:
             if self.compiled:
                 self._kernels.apply(data.qfrc_passive, data.xipos, data.xanchor, data.xmat, *self._apply_fast)
@@ -875,8 +888,6 @@ class MujocoAdapter(EngineAdapter):
             mujoco.mj_applyFT(model, data, F, _ZERO3, data.xipos[b1] + r1, b1, data.qfrc_passive)
             if not fixed2:
                 mujoco.mj_applyFT(model, data, -F, _ZERO3, data.xipos[b2] + r2, b2, data.qfrc_passive)
-        if before is not None:
-            known.applied(before, self._unheld)
 
     # -- the run-time switch per pair -----------------------------------------------
     def set_mode(self, which, mode: str) -> None:
@@ -1788,12 +1799,26 @@ class MujocoAdapter(EngineAdapter):
         read energies and momenta from those (the positions are already where
         the impulse's timing puts them). Zeros when no correction is pending.
         Computed on a private MjData at the current qpos, each body's Jacobian
-        at the point of the step that applied the correction."""
+        at the point of the step that applied the correction.
+
+        With :attr:`exact_offset` set before the step, right after an
+        ``mj_step``: the step replayed from its start state on a private
+        MjData with the same forces less the corrections J / dt
+        (:meth:`_replayed_offset`), data.qvel minus the replay's. The end-pose
+        formula above holds to first order in the step's motion; under RK4 the
+        four stages apply J / dt at their own poses (a torso turning with its
+        legs swinging), and every integrator's constraint rows answer the
+        impulse too (a leg on its limit). gymnasium's Ant-v5 (RK4) seed 3,
+        the torso landing at 2.7 m/s: the end-pose offset read its rest step
+        97 0.24 J high (issue 13)."""
         m = self.model
         on = np.flatnonzero(np.any(self.manager.J != 0.0, axis=1))
         out = np.zeros(m.nv)
         if on.size == 0:
             return out
+        st = self._step_start
+        if self.exact_offset and st is not None and float(self.data.time) == st["time"] + self.timestep:
+            return self._replayed_offset(on)
         if getattr(self, "_scratch", None) is None:
             self._scratch = mujoco.MjData(m)
         s = self._scratch
@@ -1819,6 +1844,61 @@ class MujocoAdapter(EngineAdapter):
         # the step applied the correction through its own A (Euler's implicit damping, the implicit integrators' D)
         S = self._step_response(s, self.data)
         return dq[0] if S is None else S @ dq[0]
+
+    #: the MjData fields a step starts from (besides the derived quantities mj_step recomputes)
+    _START_FIELDS = ("qpos", "qvel", "act", "ctrl", "qacc_warmstart", "qfrc_applied", "xfrc_applied", "mocap_pos",
+                     "mocap_quat", "xipos")
+
+    def _start_state(self, data) -> dict:
+        """The step's start state (in the hook of the step's first call): the fields
+        :meth:`_replayed_offset` starts its replay from, and xipos (the lever arms' origin)."""
+        st = {k: getattr(data, k).copy() for k in self._START_FIELDS}
+        st["time"] = float(data.time)
+        return st
+
+    def _replayed_offset(self, on: np.ndarray) -> np.ndarray:
+        """data.qvel minus the velocities of the last step replayed without the
+        timing corrections of pairs ``on`` (:meth:`velocity_offset`): a private
+        MjData at the step's start state, ``mj_step`` with a passive hook that
+        applies this step's forces (:meth:`_apply_forces`, at each call's own
+        poses, as the real step) less J / dt at each side's contact point (its
+        lever arm from the centre of mass held in world axes, as the forces'),
+        and MuJoCo's contact filter as this adapter answers it. The process's
+        other hooks (a previous mjcb_passive, mjcb_control) are not called in
+        the replay. Replayed with the corrections kept, the step is the real
+        one to round-off (tests/test_gymnasium_ant.py)."""
+        m, d, st = self.model, self.data, self._step_start
+        if getattr(self, "_replay", None) is None:
+            self._replay = mujoco.MjData(m)
+        s = self._replay
+        for k in self._START_FIELDS[:-1]:
+            getattr(s, k)[:] = st[k]
+        s.time = st["time"]
+        dt = self.timestep
+        corr = []
+        for i in on.tolist():
+            p, J = self._pairs[i], self.manager.J[i] / dt
+            corr.append((p.body1, -J, self._p1[i] - st["xipos"][p.body1]))
+            if int(m.body_weldid[p.body2]) != 0:
+                corr.append((p.body2, J, self._p2[i] - st["xipos"][p.body2]))
+
+        def replay(model, data):
+            self._apply_forces(model, data)
+            for b, F, r in corr:
+                mujoco.mj_applyFT(model, data, F, _ZERO3, data.xipos[b] + r, b, data.qfrc_passive)
+
+        hooks = mujoco.get_mjcb_passive(), mujoco.get_mjcb_control(), mujoco.get_mjcb_contactfilter()
+        mujoco.set_mjcb_passive(replay)
+        mujoco.set_mjcb_control(None)
+        if self._filtering:
+            mujoco.set_mjcb_contactfilter(lambda model, data, g1, g2: self._contact_filter(int(g1), int(g2)))
+        try:
+            mujoco.mj_step(m, s)
+        finally:
+            mujoco.set_mjcb_passive(hooks[0])
+            mujoco.set_mjcb_control(hooks[1])
+            mujoco.set_mjcb_contactfilter(hooks[2])
+        return d.qvel - s.qvel
 
     def _angular_velocity(self, body: int) -> np.ndarray:
         """The body's angular velocity in world axes [rad/s] (3,): cvel's angular part, which

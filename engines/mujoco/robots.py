@@ -27,6 +27,21 @@ from msf_contact.materials import ContactPair
 from msf_contact.shapes import DEFAULT_EDGE_RADIUS
 
 FLOOR = "floor"
+#: ``load_with_msf_floor(mu=ENGINE_FRICTION)``: each foot's Coulomb cap is the
+#: friction MuJoCo's own contact gives the (geom, floor) pair (:func:`engine_friction`),
+#: as engines.pybullet.robots' default
+ENGINE_FRICTION = "engine"
+
+
+def engine_friction(m: mujoco.MjModel, g1: int, g2: int) -> float:
+    """The sliding friction coefficient MuJoCo's own contact gives geoms ``g1``
+    and ``g2`` [-]: the geom of higher ``priority``'s, the larger of the two at
+    equal priority (MuJoCo's documentation, Modeling, "Contact parameters":
+    friction is mixed by maximum). An explicit ``<pair>`` is not read (these
+    pairs are MSF's, never MuJoCo's)."""
+    p1, p2 = int(m.geom_priority[g1]), int(m.geom_priority[g2])
+    f1, f2 = float(m.geom_friction[g1, 0]), float(m.geom_friction[g2, 0])
+    return f1 if p1 > p2 else f2 if p2 > p1 else max(f1, f2)
 
 
 def _collides(m: mujoco.MjModel, g1: int, g2: int) -> bool:
@@ -34,7 +49,7 @@ def _collides(m: mujoco.MjModel, g1: int, g2: int) -> bool:
 
 
 def load_with_msf_floor(path: str, pair: ContactPair, *, law: str = "msf", edge_radius: float = DEFAULT_EDGE_RADIUS,
-                        floor_size: float = 50.0, **law_options):
+                        floor_size: float = 50.0, mu: float | str | None = None, **law_options):
     """(model, data, pairs): the model at ``path`` with a floor geom named
     ``"floor"`` (added, a plane at z = 0, if missing), a free joint on every
     root body without a joint (as pybullet's ``loadMJCF`` makes it a free
@@ -42,7 +57,14 @@ def load_with_msf_floor(path: str, pair: ContactPair, *, law: str = "msf", edge_
     with the floor excluded for every body that would touch it, and the MSF
     pairs (geom, "floor") with laws of ``law`` for ``pair`` (body 1 the
     robot's material, body 2 the floor's) and the curvature each geom shows
-    the floor. ``mj_forward`` has been called."""
+    the floor. ``mj_forward`` has been called. mu: the feet's Coulomb cap
+    |F_t| <= mu F_n (``make_law(..., mu=)``): None (default) no cap, the
+    paper's law; ENGINE_FRICTION the friction MuJoCo's own contact gives each
+    (geom, floor) pair (:func:`engine_friction`: the ant's and the humanoid's
+    feet 1.0); a number for every pair."""
+    if not (mu is None or mu == ENGINE_FRICTION
+            or (isinstance(mu, (int, float)) and not isinstance(mu, bool) and mu > 0 and np.isfinite(mu))):
+        raise ValueError(f"mu = {mu!r} must be {ENGINE_FRICTION!r}, a finite number > 0 or None")
     spec = mujoco.MjSpec.from_file(str(path))
     for body in spec.worldbody.bodies:  # pybullet's loadMJCF makes a root body without joints a free base
         if not body.joints:
@@ -65,8 +87,9 @@ def load_with_msf_floor(path: str, pair: ContactPair, *, law: str = "msf", edge_
     model = spec.compile()
     data = mujoco.MjData(model)
     mujoco.mj_forward(model, data)
-    laws: dict[float, object] = {}
+    laws: dict[tuple, object] = {}
     pairs = []
+    fl = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, FLOOR)
     for g in geoms:
         name = model.geom(g).name
         if not name:
@@ -78,9 +101,13 @@ def load_with_msf_floor(path: str, pair: ContactPair, *, law: str = "msf", edge_
             R = min(edge_radius, float(min(model.geom_size[g, :3])))
         else:  # a placeholder: the adapter gives each contact the law for its point's curvature (LawBank)
             R = float(model.geom_rbound[g])
-        if R not in laws:
-            laws[R] = make_law(law, pair, Curvature.sphere_on_plane(R), **law_options)
-        pairs.append(PairSpec(name, FLOOR, laws[R]))
+        m = engine_friction(model, g, fl) if mu == ENGINE_FRICTION else mu
+        if m is not None and not m > 0.0:
+            raise ValueError(f"geom {name!r}: MuJoCo's friction with the floor is {m!r}: give mu > 0 or None")
+        opts = law_options if m is None else {**law_options, "mu": m}
+        if (R, m) not in laws:
+            laws[(R, m)] = make_law(law, pair, Curvature.sphere_on_plane(R), **opts)
+        pairs.append(PairSpec(name, FLOOR, laws[(R, m)]))
     if not pairs:
         raise ValueError(f"no geom of {path} collides with the floor: nothing for MSF to do")
     return model, data, pairs
@@ -265,6 +292,8 @@ class RestEnergy:
                              f"stage), got adapter = {adapter!r}; without one use Euler, implicit or implicitfast "
                              "(model.opt.integrator)")
         self.model, self.data, self.adapter = model, data, adapter
+        if adapter is not None:  # the physical velocities from the step replayed without its timing corrections
+            adapter.exact_offset = True
         #: energy MuJoCo's constraints took out of the mechanism since the start, per kind of
         #: CONSTRAINT_KINDS [J] (under RK4 also "mixed": stages whose rows were of several kinds)
         self.absorbed_by = {k: 0.0 for k in CONSTRAINT_KINDS}
@@ -276,6 +305,10 @@ class RestEnergy:
         self.total = self._account(self._v)
 
     def _qvel(self) -> np.ndarray:
+        """The physical velocities (nv,): data.qvel less the adapter's velocity_offset, which this
+        account reads exactly (MujocoAdapter.exact_offset: the step replayed without its timing
+        corrections; the end-pose formula read gymnasium's Ant-v5 (RK4) 0.26 J high in the step
+        after its torso's landing, issue 13)."""
         v = self.data.qvel.copy()
         return v if self.adapter is None else v - self.adapter.velocity_offset()
 
@@ -333,5 +366,5 @@ class RestEnergy:
         return out
 
 
-__all__ = ["CONSTRAINT_KINDS", "FLOOR", "REST_GAIN_RTOL", "RestEnergy", "constraint_forces", "limit_force",
-           "load_with_msf_floor", "mechanical_energy"]
+__all__ = ["CONSTRAINT_KINDS", "ENGINE_FRICTION", "FLOOR", "REST_GAIN_RTOL", "RestEnergy", "constraint_forces", "limit_force",
+           "engine_friction", "load_with_msf_floor", "mechanical_energy"]
