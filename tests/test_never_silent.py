@@ -209,3 +209,32 @@ def test_a_law_refusing_every_onset_speed_is_an_error_naming_the_pair():
     with pytest.raises(ValueError, match=r"^pair 0: the law refuses every onset speed down to \S+ m/s "
                                          r"\(mass 6\.5e-08 kg\)$"):
         mgr._onset_in_range(RefusesEverySpeed(), np.array([0]), np.array([50.0]), np.array([m]))
+
+
+@pytest.mark.parametrize("engine", [pytest.param("mujoco", marks=pytest.mark.mujoco),
+                                    pytest.param("pybullet", marks=pytest.mark.pybullet)])
+def test_a_ball_placed_overlapping_the_plate_is_flagged_when_launched(engine):
+    """A steel ball placed at rest 0.1 R into a steel plate (no gravity):
+    the elastic energy of that overlap, never worked for, launches it. Its
+    onset is the manager's floor (no closing speed), so the COR check had
+    nothing to compare and the record said only that x_max/R was above the
+    small-strain bound (a rubber ball placed 0.4 R into a floor rose 2 m;
+    pybullet_data's soccerball.urdf loaded into plane.urdf left at 53 m/s).
+    The record now names the gain and its cause, and stderr says it."""
+    from test_islands import BALL
+    from test_multi_contact import Scene
+
+    law = make_law("msf", ContactPair(preset("steel"), preset("steel")), Curvature.sphere_on_plane(BALL.radius))
+    x0 = 0.1 * BALL.radius
+    sc = Scene(engine, [BALL], [[0.0, 0.0, BALL.radius - x0]], [[0.0, 0.0, 0.0]], [(0, -1)], [law], 0.0, 1e-4)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with sc._ctx:
+            sc.adapter.step(50)
+        recs = sc.adapter.pop_records()
+    assert len(recs) == 1
+    notes = [s for s in recs[0].outside_validity if s.startswith("energy gained in a contact")]
+    assert notes and "began" in notes[0] and "placed" in notes[0], recs[0].outside_validity
+    said = [str(w.message) for w in caught if issubclass(w.category, ValidityWarning)
+            and "energy gained in a contact" in str(w.message)]
+    assert len(said) == 1 and "pair 0" in said[0]

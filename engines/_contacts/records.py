@@ -19,7 +19,7 @@ from msf_contact.record import ImpactRecord
 
 from .. import _kernel as K
 from .state import (
-    ENERGY_GAIN_RTOL, _Q, _WEL, _WT, _WVI, _X, PENDING_MAX_STEPS, ROTATION_PER_STEP_MAX,
+    ENERGY_GAIN_RTOL, _Q, _WEL, _WT, _WVI, _X, PENDING_MAX_STEPS, V_ONSET_MIN, elastic_energy, ROTATION_PER_STEP_MAX,
     SUBSTEPS_PER_CONTACT, SUBSTEPS_PER_TANGENTIAL, _duration_estimate, _pc, _plain, _Rows, onset_speed_floor,
     onset_stiffness, surface_recovery_rate,
 )
@@ -311,8 +311,10 @@ class Records:
         energetic view of impact), rose by more than the bound beyond what
         the contact's forces took from it (W_diss_n + W_diss_t): that excess
         is work done from outside the contact (a_ext)."""
-        if self._island_contact[p] or not (self.v_n_in[p] > 0 and self.v_n_in[p] >= self.v_n_used[p]):
+        if self._island_contact[p]:
             return None
+        if not (self.v_n_in[p] > 0 and self.v_n_in[p] >= self.v_n_used[p]):
+            return self._deep_start_gain(p, v_out)
         m = float(self.m_eff[p])
         E_in = 0.5 * m * (vin * vin + lu * lu)
         dE_n = 0.5 * m * (v_out * v_out - vin * vin)
@@ -332,6 +334,44 @@ class Records:
                 f"{what} (more than {ENERGY_GAIN_RTOL:g} of its {E_in:.3g} J): work from outside the contact "
                 "(a_ext), e.g. another stiff contact on the same body acting a step late; give the adapter's "
                 "coupling blocks (ContactManager.set_coupling) or take a smaller dt")
+
+    def _deep_start_gain(self, p, v_out) -> str | None:
+        """The reason a contact of pair p that began already overlapping, at
+        no closing speed of its own (a body placed, reset or written into
+        overlap: its onset is the manager's floor, so :meth:`_energy_gain`'s
+        COR check has no approach speed to compare), left with more normal
+        kinetic energy than it came with, beyond ENERGY_GAIN_RTOL of its
+        approach energy 1/2 m max(v_in, V_ONSET_MIN)^2, from the elastic
+        energy of its overlap at the onset (int_0^x0 F_n(x', 0) dx', never
+        worked for: engines._contacts.balance), or None. A body placed at
+        its static overlap and left there ends no contact and is not
+        flagged; one placed deeper is launched by that energy (a rubber
+        ball, R = 50 mm, placed 20 mm into a steel floor in MuJoCo rose 2 m,
+        flagged before only as x_max/R = 0.4 above the small-strain bound;
+        pybullet_data's soccerball.urdf, R = 0.5 m, loaded 0.2 m into
+        plane.urdf left with 14.5 kJ). Links (DeepOnsets flags them in their
+        step) are not flagged twice."""
+        x0 = float(self.x_onset[p])
+        note = self._gain_note[p]
+        if x0 <= 0.0 or (note and "deep at its onset" in note):
+            return None
+        m = float(self.m_eff[p])
+        v0 = float(self.v_n_in[p])
+        v0 = v0 if v0 > 0.0 else 0.0
+        E_in = 0.5 * m * max(v0, V_ONSET_MIN) ** 2
+        gain = 0.5 * m * (v_out * v_out - v0 * v0)
+        if not gain > ENERGY_GAIN_RTOL * E_in:
+            return None
+        g, pos = self._group_of[p], self._pos[p]
+        with np.errstate(all="ignore"):  # metres deep: the energy may overflow (still flagged)
+            E_el = float(elastic_energy(self._groups[g], np.array([x0]),
+                                        {k: v[pos:pos + 1] for k, v in self._onset[g].items()})[0])
+        names = self.pair_names[p]
+        return (f"energy gained in a contact: pair {p} ({names[0]}, {names[1]}), dt = {self.dt:g} s: it began "
+                f"{x0:.3g} m deep at {v0:.3g} m/s and left at {v_out:.3g} m/s, {gain:.3g} J gained from the "
+                f"elastic energy of that overlap, {E_el:.3g} J, which no force worked for: a body placed, reset or "
+                "written overlapping the other (start bodies clear of each other, or at their static overlap: "
+                "msf_contact.static_overlap), or moved into overlap within a step (take a smaller dt)")
 
     def interrupt(self, pairs, why: str) -> int:
         """The engine's state jumped for the bodies of ``pairs`` (pair

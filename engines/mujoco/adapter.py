@@ -1133,11 +1133,13 @@ class MujocoAdapter(EngineAdapter):
             return
         mgr = self.manager
         integ = int(self.model.opt.integrator)
-        why = ("MuJoCo's RK4 moved the link into overlap within a step the contact's free flight did not "
+        why = ("the model was loaded, reset or placed overlapping (start it clear), or "
+               "MuJoCo's RK4 moved the link into overlap within a step the contact's free flight did not "
                "predict (the other forces' change inside the step, which RK4's stages follow and the free "
                "flight holds at the step start: a joint limit engaging, a fast-turning link; a control "
                "written by mjcb_control); take a smaller timestep"
                if integ == int(mujoco.mjtIntegrator.mjINT_RK4) else
+               "the model was loaded, reset or placed overlapping (start it clear), or "
                "the engine moved the bodies into overlap within a step the contact's free flight did not "
                "predict (semi-implicit Euler moves a body by dt v_end, dt^2/2 a further than the free flight; "
                "the other forces' change inside the step: a joint limit engaging, a fast-turning link; a "

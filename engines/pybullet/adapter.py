@@ -1537,7 +1537,8 @@ class PybulletAdapter(EngineAdapter):
         above the floor and launched the car at 64 m/s with no warning."""
         if not self._deep_mask.any():
             return
-        why = ("the contact point found for it lies that far inside the other body (a narrow phase's point or "
+        why = ("the body was loaded, reset or placed overlapping the other (start it clear), or "
+               "the contact point found for it lies that far inside the other body (a narrow phase's point or "
                "fitted surface beyond the shape's own, a link moved into overlap by its joints within a step: "
                "a drive, a limit engaging); check the pair's shapes (link_shapes, curvature) or take a smaller "
                "time step")
