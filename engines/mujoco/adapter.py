@@ -2019,12 +2019,41 @@ def _dispatch_sensor(model, data, stage) -> None:
 
 def _dispatch(model, data) -> None:
     """The one mjcb_passive of this process: chain the previous Python hook,
-    then the adapter of this MjData, if any."""
+    then the adapter of this MjData, if any (another MjData of a model an
+    installed adapter manages: :func:`_unmanaged`)."""
     if _PREVIOUS and _PREVIOUS[0] is not None:
         _PREVIOUS[0](model, data)
     adapter = _REGISTRY.get(id(data))
     if adapter is not None and adapter.data is data:
         adapter._passive(model, data)
+    elif id(data) not in _UNMANAGED:
+        _unmanaged(model, data)
+
+
+#: ids of the MjData stepped under the hook with no adapter of their own, already looked at (_unmanaged)
+_UNMANAGED: set[int] = set()
+
+
+def _unmanaged(model, data) -> None:
+    """Never silent: an MjData with no adapter, stepped while an adapter of
+    the same model is installed (``mujoco.rollout.rollout(model, [d, d2],
+    ...)``, whose threads step each MjData of the list; a copy made with
+    ``mj_copyData`` or ``copy.copy(data)``), has no MSF contact: its MSF
+    pairs step with whatever the model gives them (measured: a rubber ball
+    rolled out on the adapter's MjData and on a second one bounced at
+    z = 19.4 mm on the first, sank to 10.8 mm in MuJoCo's own soft contact
+    on the second, with no word). Warned once per MjData, naming the fix."""
+    _UNMANAGED.add(id(data))
+    addr = getattr(model, "_address", None)
+    owners = [a for a in _REGISTRY.values() if getattr(a.model, "_address", None) == addr]
+    if addr is None or not owners:
+        return
+    warnings.warn(
+        f"mjcb_passive was called for an MjData that has no MSF adapter, of the model whose {len(owners[0].pairs)} "
+        "MSF pair(s) an installed MujocoAdapter manages on another MjData (mujoco.rollout with several MjData, a "
+        "copy of the MjData): this MjData steps those pairs without MSF (MuJoCo's own contact, or none). Give "
+        "each MjData its own adapter, installed (MujocoAdapter(model, data_k, pairs); with installed(...)), or "
+        "step the one MjData the adapter has", RuntimeWarning, stacklevel=2)
 
 
 @contextlib.contextmanager
