@@ -462,3 +462,31 @@ def test_the_side_end_law_onset_equals_its_python_integration(rounded):
             assert got.keys() == want.keys()
             for k in want:
                 np.testing.assert_allclose(got[k], want[k], rtol=COMPILED_ONSET_RTOL, atol=0.0, err_msg=k)
+
+
+def test_a_mesh_found_deep_at_its_onset_is_flagged_in_its_step():
+    """A narrow-phase contact begun already overlapping (here an icosphere
+    placed 1 mm into the plate; as a user met it, pybullet_data's
+    teddy2_VHACD_CHs.obj dropped from 0.3 m whose point was found 23.6 mm
+    deep at a 1.17 m/s onset and left at 36 m/s, with no warning) is
+    flagged in its step by the deep-onset check that links had
+    (MujocoAdapter._check_deep_onsets), and its record says the energy it
+    gained came from that overlap."""
+    R = 0.02
+    m = RUBBER.density * 4 / 3 * math.pi * R**3
+    ico = trimesh.creation.icosphere(subdivisions=3, radius=R)
+    asset = (f'<mesh name="ico" vertex="{" ".join(repr(float(c)) for c in ico.vertices.ravel())}" '
+             f'face="{" ".join(str(int(f)) for f in ico.faces.ravel())}"/>')
+    law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(R))
+    model, data = scene('<geom name="g" type="mesh" mesh="ico" mass="0"/>', m, 0.4 * m * R * R, R - 1e-3, v=0.0,
+                        asset=asset)
+    adapter = MujocoAdapter(model, data, [PairSpec("g", "plate", law)])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        adapter.step(1)
+        assert adapter.deep_onsets == 1
+        said = [str(w.message) for w in caught if "deep at its onset" in str(w.message)]
+        assert len(said) == 1 and "narrow phase" in said[0]
+        adapter.step(100)
+    recs = adapter.records
+    assert recs and any("deep at its onset" in note for note in recs[0].outside_validity)

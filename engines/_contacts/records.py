@@ -371,7 +371,8 @@ class Records:
                 f"{x0:.3g} m deep at {v0:.3g} m/s and left at {v_out:.3g} m/s, {gain:.3g} J gained from the "
                 f"elastic energy of that overlap, {E_el:.3g} J, which no force worked for: a body placed, reset or "
                 "written overlapping the other (start bodies clear of each other, or at their static overlap: "
-                "msf_contact.static_overlap), or moved into overlap within a step (take a smaller dt)")
+                "msf_contact.static_overlap), a contact point found inside the other body (a narrow phase's: "
+                "check the pair's shapes), or a body moved into overlap within a step (take a smaller dt)")
 
     def interrupt(self, pairs, why: str) -> int:
         """The engine's state jumped for the bodies of ``pairs`` (pair
