@@ -208,13 +208,19 @@ def test_a_box_tilted_from_an_edge_or_a_face_bounces_continuously(lying):
     assert np.max(np.abs(np.diff(peaks)) / np.diff(tilts)) < BOX_SLOPE_MAX, peaks
 
 
-def test_mesh_icosphere_against_the_analytic_sphere():
-    R = 0.02
+def _icosphere(R):
+    """A rubber icosphere of 1,280 faces and radius R [m]: its mass [kg], the
+    MJCF asset of its mesh "ico" and the law of the sphere of R on steel."""
     m = RUBBER.density * 4 / 3 * math.pi * R**3
     ico = trimesh.creation.icosphere(subdivisions=3, radius=R)
     asset = (f'<mesh name="ico" vertex="{" ".join(repr(float(c)) for c in ico.vertices.ravel())}" '
              f'face="{" ".join(str(int(f)) for f in ico.faces.ravel())}"/>')
-    law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(R))
+    return m, asset, make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(R))
+
+
+def test_mesh_icosphere_against_the_analytic_sphere():
+    R = 0.02
+    m, asset, law = _icosphere(R)
     for euler in ("0 0 0", "10 20 30", "33 7 51"):
         mesh, _ = drop(law, '<geom name="g" type="mesh" mesh="ico" mass="0"/>', m, 0.4 * m * R * R, R + 1e-4,
                        euler=euler, asset=asset)
@@ -473,11 +479,7 @@ def test_a_mesh_found_deep_at_its_onset_is_flagged_in_its_step():
     (MujocoAdapter._check_deep_onsets), and its record says the energy it
     gained came from that overlap."""
     R = 0.02
-    m = RUBBER.density * 4 / 3 * math.pi * R**3
-    ico = trimesh.creation.icosphere(subdivisions=3, radius=R)
-    asset = (f'<mesh name="ico" vertex="{" ".join(repr(float(c)) for c in ico.vertices.ravel())}" '
-             f'face="{" ".join(str(int(f)) for f in ico.faces.ravel())}"/>')
-    law = make_law("msf", ContactPair(RUBBER, STEEL), Curvature.sphere_on_plane(R))
+    m, asset, law = _icosphere(R)
     model, data = scene('<geom name="g" type="mesh" mesh="ico" mass="0"/>', m, 0.4 * m * R * R, R - 1e-3, v=0.0,
                         asset=asset)
     adapter = MujocoAdapter(model, data, [PairSpec("g", "plate", law)])
