@@ -358,3 +358,26 @@ def test_mujoco_rollout_gets_msf_on_every_mjdata_that_has_an_adapter():
 
     _z_one, said = roll(ads[:1])
     assert len(said) == 1 and "Give each MjData its own adapter" in said[0]
+
+
+def test_sleeping_islands_are_warned_at_construction_and_named_in_the_jump():
+    """MuJoCo 4's sleeping islands (<flag sleep="enable"/>) put a resting
+    body to sleep inside a step, which the adapter reads as a jump (a rubber
+    ball resting on the floor: one jump at t = 0.535 s, its contact
+    interrupted with no record): not supported, warned at construction, and
+    the jump's warning names sleep as its cause."""
+    m = mujoco.MjModel.from_xml_string(
+        '<mujoco><option timestep="0.001"><flag sleep="enable"/></option><worldbody>'
+        '<geom name="floor" type="plane" size="2 2 .1"/><body name="ball" pos="0 0 0.05"><freejoint/>'
+        '<geom name="ball" type="sphere" size="0.02" mass="0.03"/></body></worldbody></mujoco>')
+    d = mujoco.MjData(m)
+    law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(0.02))
+    with pytest.warns(RuntimeWarning, match="sleeping islands are enabled"):
+        ad = MujocoAdapter(m, d, [PairSpec("ball", "floor", law)])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with installed(ad):
+            for _ in range(1500):
+                mujoco.mj_step(m, d)
+    jumps = [str(w.message) for w in caught if "state jumped" in str(w.message)]
+    assert ad.jumps >= 1 and jumps and all("sleep" in j for j in jumps)

@@ -660,6 +660,11 @@ class MujocoAdapter(EngineAdapter):
                                   and not self._any_link)
         #: contacts found deep at their onset on a link (flagged; _check_deep_onsets, engines._contacts.balance)
         self._deep = DeepOnsets()
+        if model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_SLEEP:
+            warnings.warn("MuJoCo's sleeping islands are enabled (<flag sleep=\"enable\"/>): the MSF adapter does "
+                          "not support them; a body put to sleep or woken inside a step reads as a jump (its MSF "
+                          "contacts in progress are interrupted without a record, warned each time). Disable sleep "
+                          "for a model with MSF pairs", RuntimeWarning, stacklevel=2)
         #: number of engine steps run through :meth:`step`
         self.steps = 0
         #: the manager's step-averaged forces of the last step (None: no candidate)
@@ -1050,6 +1055,10 @@ class MujocoAdapter(EngineAdapter):
             return
         self.jumps += 1
         why = f"MuJoCo's state jumped at t = {float(self.data.time):.6g} s: {self._tracker.why}"
+        if self.model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_SLEEP:
+            why += (" (MuJoCo's sleeping islands are enabled, <flag sleep=\"enable\"/>: a body put to sleep or "
+                    "woken inside a step reads as such a jump; the adapter does not support them: disable sleep, "
+                    "or take the interrupted contacts' records as lost)")
         n = self.manager.interrupt(np.flatnonzero(hit), why)
         self._have_last[hit] = False
         self._last_dv[hit] = 0.0
