@@ -26,8 +26,9 @@ the terms of MuJoCo's step (J):
 
 Their sum is the rise to second order in the step (printed: the largest
 |rise - sum| over the steps above the bound; ~1e-9 J at rest).
-Printed: the steps above the bound with their terms, and how many rest
-steps had the contacts' balance above 1e-3 of the kinetic energy.
+Printed: the steps above the bound with their terms, each term summed over
+every rest step, and how many rest steps had the contacts' balance above
+1e-3 of the kinetic energy.
 
     .venv/bin/python scripts/rest_terms.py humanoid.xml --seed 13
     .venv/bin/python scripts/rest_terms.py ant.xml --seed 4 --rest-steps 200
@@ -152,6 +153,8 @@ def main(argv=None) -> int:
           f"{len(above)} rest steps above RestEnergy's bound (largest {max((r[1] for r in above), default=0.0):.3g} "
           f"J; the terms close their rises to {closure:.2g} J); the contacts' balance above {REST_GAIN_RTOL:g} of the "
           f"kinetic energy in {sum(r[5]['contacts'] > REST_GAIN_RTOL * r[2] for r in rows)} rest steps")
+    print("  summed over every rest step: " + ", ".join(f"{n} {sum(r[5][n] for r in rows):.3g}" for n in TERMS)
+          + f" J; contacts + offset over the steps above the bound {sum(r[5]['contacts'] + r[5]['offset'] for r in above):.3g} J")
     for k, rise, T0, _, allowed, t in above[:a.show]:
         print(f"  step {k}: rise {rise:.3g} J, allowed {allowed:.3g} J, kinetic {T0:.3g} J; "
               + ", ".join(f"{n} {t[n]:.3g}" for n in TERMS))
