@@ -9,8 +9,10 @@ with known principal radii of curvature at the contact point. Supported:
 - sphere-sphere.
 
 Anything else (a box edge or corner, box-box, capsule, cylinder, mesh,
-ellipsoid) is refused with ``ValueError``: an edge has no finite curvature
-and a mesh none that the law can use.
+ellipsoid) is refused here with ``ValueError``: a sharp edge has no finite
+curvature. The adapters carry a sphere on a box as the box rounded by its
+edge radius (faces, edges and corners: engines._narrow.SphereOnBox) and
+the other shapes through the engines' narrow phases (engines._narrow).
 
 Every detector is vectorised over n pairs and returns a :class:`Detection`
 with the conventions of :mod:`engines.base`: ``x`` the approach of the
@@ -223,33 +225,3 @@ def sphere_box_face(center, radius, box_center, box_rotation, half_sizes, margin
         )
     nrm = rot[rows, :, axis] * sign[:, None]
     return Detection.of_sphere(c, R, x, nrm, np.full((n, 2), math.inf))
-
-
-def sphere_box(center, radius, box_center, box_rotation, half_sizes) -> tuple[Detection, np.ndarray]:
-    """Sphere (body 1) and box (body 2), wherever the sphere is: the true
-    distance to the box's closest point (clamped centre). Returns the
-    Detection and ``smooth`` (n,) bool: True where the closest point is on a
-    face (or the centre is inside the box: the nearest face), i.e. what
-    :func:`sphere_box_face` gives; False where it is on an edge or a corner,
-    for which x = R - |c - closest point| and the normal points from the
-    closest point to the centre (the contact is not smooth there: an adapter
-    hands it to the engine's own contact, never refuses bodies far apart).
-    Shapes as :func:`sphere_box_face`."""
-    det = sphere_box_face(center, radius, box_center, box_rotation, half_sizes, margin=-math.inf)  # validates
-    c = _vec("center", center)
-    n = c.shape[0]
-    R = det.radii1[:, 0]
-    rot = np.broadcast_to(np.asarray(box_rotation, dtype=float).reshape(-1, 3, 3), (n, 3, 3))
-    h = _vec("half_sizes", half_sizes, n)
-    local = np.einsum("nji,nj->ni", rot, c - _vec("box_center", box_center, n))
-    smooth = (np.abs(local) > h).sum(axis=1) <= 1  # the face rows of det are the contact
-    edge = np.flatnonzero(~smooth)
-    if edge.size:
-        closest = np.clip(local[edge], -h[edge], h[edge])
-        d_local = local[edge] - closest
-        dist = np.linalg.norm(d_local, axis=1)
-        nrm = np.einsum("nij,nj->ni", rot[edge], d_local / dist[:, None])
-        e = Detection.of_sphere(c[edge], R[edge], R[edge] - dist, nrm, np.full((edge.size, 2), math.inf))
-        for f in ("x", "normal", "point", "point1", "point2"):
-            getattr(det, f)[edge] = getattr(e, f)
-    return det, smooth

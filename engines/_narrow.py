@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from msf_contact.curvature import SurfaceCurvature, relative_curvature
+from msf_contact.curvature import SurfaceCurvature, relative_curvature, tangent_basis
 from msf_contact import closed_forms as cf
 from msf_contact._validate import SMALL_STRAIN_X_OVER_R, ValidityWarning
 from msf_contact.geometry import Curvature, SideFootprint
@@ -1009,3 +1009,160 @@ class BoxOnPlane:
                 law.mass_factor = w_own / total if total > 0.0 else 1.0
             refresh(law, before[s])
         return per
+
+
+# ------------------------------------------------------------ sphere on box ---
+#: The rounded box's curvature under a sphere is blended over a band each
+#: side of the line where a face turns into its rounded edge
+#: (:func:`rounded_box_curvature`): each of the box's axes counts as rounded
+#: by the share of a patch of this half-width, EDGE_BLEND rho, that lies past
+#: that line. A fixed share of the edge radius, not the patch's own width
+#: sqrt(R_s x): the law is then a function of the contact point alone (a
+#: blend that followed x jumped when a contact ended, x -> 0, and the
+#: contact resumed with another law). 0.2 rho = 0.2 mm at rho = 1 mm: the
+#: order of a rubber ball's patch resting on the edge (R 10 mm, 4.6 g:
+#: a = sqrt(0.91 mm x 37 um) = 0.18 mm), a fifth of the edge's arc
+#: (pi rho / 2 = 1.6 mm) at each end, so its middle is the cylinder of rho.
+EDGE_BLEND = 0.2
+
+
+def rounded_box_contact(center, radius: float, box_pos, box_rot, shape: Box):
+    """A sphere (centre ``center`` [m] (3,), ``radius`` [m]) against a box
+    with rounded edges (:class:`msf_contact.shapes.Box` ``shape``: the
+    Minkowski sum of the box of half-extents h - rho and the sphere of the
+    edge radius rho; frame at ``box_pos`` [m] (3,), ``box_rot`` (3, 3)).
+    Returns (x [m] approach, negative a gap; n (3,) unit normal from the box
+    to the sphere, world; n_local (3,) the same in the box's frame; local
+    (3,) the sphere's centre in the box's frame): x = R + rho - |c - q|, q
+    the inner box's closest point to the centre (a centre inside the inner
+    box: its nearest face). The face contact is the sharp box's (same x and
+    normal) wherever the centre projects inside the face's flat part."""
+    rot = np.asarray(box_rot, dtype=float).reshape(3, 3)
+    local = rot.T @ (np.asarray(center, dtype=float) - np.asarray(box_pos, dtype=float))
+    g = np.asarray(shape.half_extents, dtype=float) - shape.edge_radius
+    d = local - np.clip(local, -g, g)
+    dist = float(np.linalg.norm(d))
+    if dist > 0.0:
+        n_local = d / dist
+        x = radius + shape.edge_radius - dist
+    else:  # the centre inside the inner box: its nearest face
+        k = int(np.argmin(g - np.abs(local)))
+        n_local = np.zeros(3)
+        n_local[k] = 1.0 if local[k] >= 0.0 else -1.0
+        x = radius + shape.edge_radius + float(g[k] - abs(local[k]))
+    return x, rot @ n_local, n_local, local
+
+
+def rounded_box_curvature(shape: Box, local, n_local, half_width: float) -> SurfaceCurvature:
+    """The box's principal curvatures (its frame) under a sphere's contact
+    whose centre is at ``local`` [m] (3,) with the box's outward normal
+    ``n_local`` (3,) (:func:`rounded_box_contact`), blended over the
+    patch's ``half_width`` [m]: (1/rho) P (sum_i w_i e_i e_i^T) P, P the
+    projection on the tangent plane, w_i in [0, 1] the share of the patch
+    past the line where axis i's face turns into its rounded edge (u_i: the
+    distance along the surface past that line, rho asin|n_i| on the rounded
+    part, the centre's |c_i| - (h_i - rho) <= 0 on the flat part;
+    w_i = (u_i + a) / 2a clipped). Deep in a face: flat; on an edge: 1/rho
+    across it, 0 along it; on a corner: the sphere of rho (as
+    msf_contact.shapes.Box.curvature), and continuous in the centre's
+    position in between: the law the contact gets changes with no step as
+    a ball rolls from a face onto an edge (an extension of the paper: a
+    patch straddling a face and its rounded edge is no Hertz contact; its
+    curvature is the patch's share on each)."""
+    rho, a = shape.edge_radius, max(float(half_width), 1e-300)
+    g = np.asarray(shape.half_extents, dtype=float) - rho
+    loc = np.abs(np.asarray(local, dtype=float))
+    n = np.asarray(n_local, dtype=float)
+    u = np.where(loc > g, rho * np.arcsin(np.clip(np.abs(n), 0.0, 1.0)), loc - g)
+    w = np.clip((u + a) / (2.0 * a), 0.0, 1.0)
+    P = np.eye(3) - np.outer(n, n)
+    K = P @ np.diag(w / rho) @ P
+    t1, t2 = tangent_basis(n)
+    T = np.stack([t1, t2])
+    k2d = T @ K @ T.T
+    vals, vecs = np.linalg.eigh(k2d)  # ascending
+    d1 = vecs[0, 1] * t1 + vecs[1, 1] * t2
+    d1 /= np.linalg.norm(d1)
+    d2 = np.cross(n, d1)
+    return SurfaceCurvature(max(float(vals[1]), 0.0), max(float(vals[0]), 0.0), tuple(d1), tuple(d2))
+
+
+class SphereOnBox:
+    """A sphere on a box with rounded edges (edge radius rho), as both
+    adapters carry it (issue 13): the contact in closed form on the rounded
+    box (:func:`rounded_box_contact`), its law the pair's law for the
+    curvature at the point (:func:`rounded_box_curvature`: a face flat, an
+    edge a cylinder of rho, a corner a sphere of rho, blended over the
+    patch), so a ball rolls from a face over an edge or a corner on MSF, with
+    nothing handed to the engine's own contact (before: handed to it from
+    1 mm off an edge, ``edge_handoffs``).
+
+    The pair keeps one law object of its own (:attr:`law`, given to the
+    manager once, ContactManager.set_law) whose curvature follows the
+    point's every step (:meth:`update`): between contacts freely; inside a
+    contact through ``refresh(law, before)`` (ContactManager.refresh_law),
+    so the contact keeps its elastic energy across the change (its approach
+    moves instead) and onset constants stay the onset's, as a side's end
+    (SideLine.slots) and a box's corner (BoxOnPlane.slots) do. A change
+    below CURVATURE_RTOL of the effective radii is not taken (a ball on a
+    face keeps its law).
+
+    radius [m]: the sphere's; shape: :class:`msf_contact.shapes.Box`;
+    template: the pair's law (a sphere on a plane, its materials and
+    options); kernel: engines._contacts.compiled.kernel_law or None (an
+    MSF law then integrates its onsets compiled, KernelOnsetMSFLaw); flip:
+    the pair's body 1 is the box (the Curvature's radii swapped; the normal
+    stays from the box to the sphere)."""
+
+    def __init__(self, radius: float, shape: Box, template, kernel=None, flip: bool = False):
+        if not isinstance(shape, Box):
+            raise ValueError(f"SphereOnBox needs a msf_contact.shapes.Box, not {type(shape).__name__}")
+        self.radius, self.shape, self.template, self._kernel = float(radius), shape, template, kernel
+        self.flip = bool(flip)
+        #: the centre's coordinates within these [m] (3,) on all axes but one: over a face's flat part,
+        #: clear of its blend band (the face's curvature, no blend to compute)
+        self._band = np.asarray(shape.half_extents, dtype=float) - shape.edge_radius * (1.0 + EDGE_BLEND)
+        self.sphere = Sphere(self.radius)
+        self.law = self._build(template.curvature)
+        #: the box's curvature at the last update (world frame) and the contact's combined Curvature
+        self.curvature = template.curvature
+        #: law changes taken inside a contact (refresh with the energy kept) and between contacts
+        self.changes = 0
+
+    def _build(self, curv: Curvature):
+        law = self.template.with_curvature(curv)
+        known = self._kernel(law) if self._kernel is not None and type(law) is MSFLaw else None
+        if known is not None:
+            law = KernelOnsetMSFLaw.of(law, *known)
+        return law
+
+    def contact(self, center, box_pos, box_rot):
+        """(x [m], normal (3,) box -> sphere, Curvature of the pair at the
+        point) at the current poses (the blend's half-width EDGE_BLEND rho)."""
+        x, n, n_local, local = rounded_box_contact(center, self.radius, box_pos, box_rot, self.shape)
+        band = self._band
+        if np.count_nonzero(np.abs(local) > band) <= 1:  # over a face's flat part, clear of the blend: flat
+            return x, n, self.template.curvature
+        rot = np.asarray(box_rot, dtype=float).reshape(3, 3)
+        s2 = rounded_box_curvature(self.shape, local, n_local, EDGE_BLEND * self.shape.edge_radius)
+        s1 = SurfaceCurvature.umbilic(1.0 / self.radius, -n)
+        c = relative_curvature(s1, s2.rotated(rot)).curvature
+        return x, n, (Curvature(c.R2a, c.R2b, c.R1a, c.R1b) if self.flip else c)
+
+    def update(self, curv: Curvature, active: bool, refresh) -> bool:
+        """Give :attr:`law` the curvature ``curv`` if its effective radii
+        differ by more than CURVATURE_RTOL; ``active``: the pair is in
+        contact (the change goes through ``refresh(law, before)`` with the
+        law as it was, ContactManager.refresh_law: the contact keeps its
+        elastic energy), else ``refresh(law, None)`` (the compiled
+        constants). Returns True when the law changed."""
+        if curvature_mismatch(self.law.curvature, curv) <= CURVATURE_RTOL:
+            return False
+        before = copy.copy(self.law) if active else None
+        fresh = self._build(curv)
+        self.law.__dict__.clear()
+        self.law.__dict__.update(fresh.__dict__)
+        self.curvature = curv
+        self.changes += 1
+        refresh(self.law, before)
+        return True

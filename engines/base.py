@@ -43,7 +43,6 @@ point minus body 2's.
 from __future__ import annotations
 
 import abc
-import warnings
 
 import numpy as np
 
@@ -64,7 +63,7 @@ __all__ = ["EngineAdapter", "ENGINES", "get_engine", "RADIUS_RTOL", "STEPS_PER_C
            "ContactKinematics", "ContactReport", "PairSpec", "as_array", "check_law_curvature"]
 
 
-#: A pair not on MSF (set_mode, an edge handed to the engine) is shown to
+#: A pair not on MSF (set_mode) is shown to
 #: the contact manager as this gap [m], separating at this speed [m/s].
 FAR_GAP = 1.0
 FAR_SPEED = 1.0
@@ -102,38 +101,13 @@ class EngineAdapter(abc.ABC):
     #: names of each pair's bodies [(body1, body2)], set by the adapter
     pair_names: list[tuple[str, str]] = []
 
-    def _edge(self, i: int, smooth: bool, x: float, reach: float) -> None:
-        """A sphere near a box edge or corner (closest point not on a face, gap
-        below ``reach`` [m]) is not smooth: the engine's own contact takes pair
-        i (``self._handoff``; counted in ``edge_handoffs``, a RuntimeWarning
-        the first time per pair) until the sphere is over a face with a gap,
-        or far away; an MSF contact in progress ends without a record. The
-        adapter's ``_engine_contact_changed(i)`` switches the engine's contact."""
-        near_edge = not smooth and x > -reach
-        if near_edge and not self._handoff[i]:
-            self._handoff[i] = True
-            self.edge_handoffs += 1
-            self.manager.interrupt([i], f"the contact reached a box edge or corner (handed to {self.name}'s contact)")
-            if self.edge_handoffs_of.setdefault(i, 0) == 0:
-                warnings.warn(f"pair {i} {self.pair_names[i]}: the sphere is at a box edge or corner at "
-                              f"t = {self.now:.6g} s; MSF needs smooth curvature, so {self.name}'s own contact "
-                              "takes the pair until the sphere is back over a face or away (adapter.edge_handoffs "
-                              "counts these)", RuntimeWarning, stacklevel=4)
-            self.edge_handoffs_of[i] += 1
-            self._engine_contact_changed(i)
-        elif self._handoff[i] and not near_edge and (x < 0.0 or not smooth):
-            self._handoff[i] = False
-            self._have_last[i] = False
-            self._engine_contact_changed(i)
-
     def _mask(self, kin: ContactKinematics) -> ContactKinematics:
         """Rows of pairs not on MSF (``self._mode`` != 0: the engine's contact
-        or off; ``self._handoff``: an edge handed to the engine) are shown to
-        the manager as far (FAR_GAP) and separating (FAR_SPEED), so it neither
-        starts nor continues a contact for them."""
-        if not (self._mode.any() or self._handoff.any()):  # every pair on MSF (the usual case)
+        or off) are shown to the manager as far (FAR_GAP) and separating
+        (FAR_SPEED), so it neither starts nor continues a contact for them."""
+        if not self._mode.any():  # every pair on MSF (the usual case)
             return kin
-        off = (self._mode[kin.pair] != 0) | self._handoff[kin.pair]
+        off = self._mode[kin.pair] != 0
         if np.any(off):
             kin.x = np.where(off, -FAR_GAP, kin.x)
             kin.v_rel = np.where(off[:, None], kin.normal * FAR_SPEED, kin.v_rel)

@@ -132,8 +132,9 @@ def test_mujoco_ball_rolling_off_a_table_edge_runs_on_without_energy_gain():
         for _ in range(500):  # off the edge at ~0.2 s, then free fall (the floor is not a pair)
             mujoco.mj_step(model, data)
             assert energy(model, data) <= e0 * (1 + ENERGY_GROWTH_MAX) + 1e-12
-    assert adapter.edge_handoffs >= 1
-    assert any("edge or corner" in str(w.message) for w in caught)
+    # the box's edge is rounded (engines._narrow.SphereOnBox): MSF carries the ball over it, nothing is
+    # handed to MuJoCo's contact (before issue 13: handed over 1 mm before the edge, warned)
+    assert adapter.edge_handoffs == 0 and not caught
     assert data.qpos[0] > 0.2 and data.qpos[2] < 0.0  # it left the table
 
 
@@ -189,10 +190,10 @@ def test_pybullet_ball_rolling_off_a_box_edge_runs_on():
 
     with scene, PybulletAdapter(c, [PairSpec(scene.body1, scene.body2, law())]) as ad:
         e0 = e()
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
             for _ in range(300):
                 ad.step()
                 assert e() <= e0 * (1 + 1e-6) + 1e-9
-        assert ad.edge_handoffs >= 1
+        assert ad.edge_handoffs == 0 and not caught  # MSF over the rounded edge (engines._narrow.SphereOnBox)
         assert pb.getBasePositionAndOrientation(u, physicsClientId=c)[0][0] > scenes.PLATE_HALF_WIDTH

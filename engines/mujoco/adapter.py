@@ -112,7 +112,7 @@ from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
 from engines._contacts.state import CENTRED_RTOL, lever_terms_free
 from engines._contacts.balance import DeepOnsets
 from engines._contacts.islands import TOUCH_TOL, push_reach
-from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_box, sphere_plane, sphere_sphere
+from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_plane, sphere_sphere
 from engines._sweep import sweep
 from engines.base import (
     STEPS_PER_CONTACT_MIN,
@@ -138,7 +138,6 @@ CANDIDATE_FACTOR = 2.0
 #: A sphere whose closest point on a box is an edge or a corner is handed to
 #: MuJoCo's contact once its gap is below this [m] plus the distance it can
 #: close in a step (the contact would begin on the edge).
-EDGE_REACH = 1e-3
 
 _GEOM_NAMES = {
     mujoco.mjtGeom.mjGEOM_PLANE: "plane", mujoco.mjtGeom.mjGEOM_HFIELD: "hfield",
@@ -488,6 +487,8 @@ class MujocoAdapter(EngineAdapter):
         self._line: dict = {}
         #: per narrow geom pair of a box on a plane: its corners and edges (engines._narrow.BoxOnPlane)
         self._box: dict = {}
+        #: per sphere-box pair (its index): the sphere on the rounded box (engines._narrow.SphereOnBox)
+        self._sphere_box: dict = {}
         self._pairs = []
         expanded = []
         for i, p in enumerate(pairs):
@@ -584,13 +585,11 @@ class MujocoAdapter(EngineAdapter):
         self.pair_names = [(str(p.body1), str(p.body2)) for p in self.pairs]  # one per contact slot
         self.manager.pair_names = self.pair_names
         self._sensors = self._msf_sensors()
-        # run-time switch per pair (set_mode): 0 MSF, 1 the engine's own contact, 2 both off;
-        # _handoff: a sphere at a box edge or corner handed to MuJoCo's contact while it lasts
+        # run-time switch per pair (set_mode): 0 MSF, 1 the engine's own contact, 2 both off
         self._mode = np.zeros(P, np.int8)
-        self._handoff = np.zeros(P, bool)
-        #: sphere-box contacts handed to MuJoCo's own contact at an edge or a corner (count)
+        #: sphere-box contacts handed to MuJoCo's own contact: 0 since issue 13 (a box's edges and
+        #: corners are rounded, engines._narrow.SphereOnBox, and stay on MSF); kept for callers
         self.edge_handoffs = 0
-        self.edge_handoffs_of: dict[int, int] = {}  # per pair
         self._gkeys = [(min(p.geom1, p.geom2), max(p.geom1, p.geom2)) for p in self._pairs]
         self._excl_saved = np.array(model.exclude_signature, copy=True)
         self._lifted: set[int] = set()  # body-pair signatures whose <exclude> is lifted for the engine
@@ -649,6 +648,8 @@ class MujocoAdapter(EngineAdapter):
         self._all_msf = True  # every pair on MSF (set_mode)
         self._rest_kin = None  # the kinematics the last resting step made (engines.mujoco._resting.step)
         self._rest_todo = None  # the forces it left to apply, views of its buffers (_resting.step)
+        for i, sb in self._sphere_box.items():  # each sphere-box pair's own law, its curvature following the point
+            self.manager.set_law(i, sb.law)
         self.manager.settle_rigid[:] = ~self._link_pairs  # links keep the RK4 island at rest (resting.py)
         self._any_link = bool(self._link_pairs.any())
         #: pairs whose contacts come from MuJoCo's narrow phase (a mesh's, a box's, a capsule's points):
@@ -714,6 +715,12 @@ class MujocoAdapter(EngineAdapter):
             R1 = float(m.geom_size[g1, 0])
             R2 = float(m.geom_size[g2, 0]) if t2 == "sphere" else math.inf
             check_law_curvature(f"pair {i}", p, R1, R2)
+            if t2 == "box":  # the box rounded by its edge radius: faces, edges, corners (engines._narrow.SphereOnBox)
+                from engines._contacts.compiled import kernel_law
+                from engines._narrow import SphereOnBox, make_shape
+
+                self._sphere_box[first] = SphereOnBox(R1, make_shape(
+                    "box", m.geom_size[g2], edge_radius=self.edge_radii.get(m.geom(g2).name)), p.law, kernel_law)
             return [_Pair(first, g1, g2, b1, b2, t2, R1, fixed1, fixed2)]
         if t1 == "plane":
             raise ValueError(f"pair {i}: body1 = {p.body1!r} is a plane; body1 must be the curved body "
@@ -923,10 +930,10 @@ class MujocoAdapter(EngineAdapter):
             self._apply_modes()
 
     def mode(self, which) -> str:
-        """The pair's mode ("msf", "engine" or "off"; an edge handoff counts as "engine")."""
+        """The pair's mode ("msf", "engine" or "off")."""
         key = self._key_of(which)
         i = self._gkeys.index(key)
-        return ("msf", "engine", "off")[1 if self._handoff[i] and self._mode[i] == 0 else int(self._mode[i])]
+        return ("msf", "engine", "off")[int(self._mode[i])]
 
     def _key_of(self, which) -> tuple[int, int]:
         if isinstance(which, (int, np.integer)) and not isinstance(which, bool):
@@ -944,7 +951,7 @@ class MujocoAdapter(EngineAdapter):
         return key
 
     def _engine_keys(self) -> set:
-        on = (self._mode == 1) | ((self._mode == 0) & self._handoff)
+        on = self._mode == 1
         return {self._gkeys[i] for i in np.flatnonzero(on)}
 
     def _apply_modes(self) -> None:
@@ -974,9 +981,6 @@ class MujocoAdapter(EngineAdapter):
             _install_filter(self)
         elif not need and self._filtering:
             _uninstall_filter(self)
-
-    def _engine_contact_changed(self, i: int) -> None:
-        self._apply_modes()
 
     @property
     def now(self) -> float:
@@ -1067,9 +1071,11 @@ class MujocoAdapter(EngineAdapter):
             warnings.warn(f"{why}; {n} MSF contact(s) in progress were interrupted without a record "
                           f"(adapter.interrupted = {self.interrupted})", RuntimeWarning, stacklevel=2)
 
-    def _geometry(self, p: _Pair) -> Detection:
-        """The contact of pair p from the current poses (engines._geometry);
-        a sphere at a box edge or corner within reach raises ValueError."""
+    def _geometry(self, p: _Pair, law: bool = True) -> Detection:
+        """The contact of pair p from the current poses (engines._geometry;
+        a sphere on a box: on the box rounded by its edge radius,
+        engines._narrow.SphereOnBox, whose law takes the curvature at the
+        point when ``law``)."""
         m, d = self.model, self.data
         if p.kind2 == "narrow":
             return self._narrow_detection(p)
@@ -1079,12 +1085,13 @@ class MujocoAdapter(EngineAdapter):
         rot = d.geom_xmat[p.geom2].reshape(3, 3)
         if p.kind2 == "plane":
             return sphere_plane(c1, p.radius1, d.geom_xpos[p.geom2], rot[:, 2])
-        # reach for the edge check: the centre's relative speed over one step
-        v_c = self._jacobian(p.body1, c1, self._jac) @ d.qvel - self._jacobian(p.body2, c1, self._jac2) @ d.qvel
-        reach = CANDIDATE_FACTOR * float(np.linalg.norm(v_c)) * self.timestep + EDGE_REACH
-        det, smooth = sphere_box(c1, p.radius1, d.geom_xpos[p.geom2], rot, m.geom_size[p.geom2, :3])
-        self._edge(p.index, bool(smooth[0]), float(det.x[0]), reach)
-        return det
+        sb = self._sphere_box[p.index]
+        mgr = self.manager
+        x, n, curv = sb.contact(c1, d.geom_xpos[p.geom2], rot)
+        if law:
+            sb.update(curv, bool(mgr.active[p.index]), mgr.refresh_law)
+        return Detection.of_sphere(np.asarray(c1, dtype=float)[None], np.array([p.radius1]), np.array([x]),
+                                   n[None], np.array([[curv.R2a, curv.R2b]]))
 
     def _narrow_points(self) -> list:
         """MuJoCo's narrow-phase points of every narrow geom pair at the
@@ -1946,7 +1953,7 @@ class MujocoAdapter(EngineAdapter):
         normal at the current state (after a step)."""
         p = self._pairs[i]
         self._refresh()
-        det = self._geometry(p)
+        det = self._geometry(p, law=False)
         n = det.normal[0]
         J = self._jacobian(p.body1, det.point1[0], self._jac).copy()
         J -= self._jacobian(p.body2, det.point2[0], self._jac2)

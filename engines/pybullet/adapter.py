@@ -100,7 +100,6 @@ ADVANCE_RTOL = 1e-9
 #: A sphere whose closest point on a box is an edge or a corner is handed to
 #: pybullet's contact once its gap is below the distance it can close in a
 #: step plus this [m] (the contact would begin on the edge).
-EDGE_REACH = 1e-3
 
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times
 #: the distance the surfaces can close in one step: a safety factor 2 on the
@@ -297,6 +296,8 @@ class PybulletAdapter(EngineAdapter):
         #: the pairs carried by several contact slots (engines.pybullet.narrow); per slot (pair, slot) or (-1, 0)
         self._narrow: list[_narrow.NarrowPair] = []
         self._narrow_of: list[tuple[int, int]] = []
+        #: per sphere-box pair (its index): the sphere on the rounded box (engines._narrow.SphereOnBox)
+        self._sphere_box: dict = {}
         expanded = []
         for i, p in enumerate(pairs):
             if not isinstance(p, PairSpec):
@@ -314,6 +315,14 @@ class PybulletAdapter(EngineAdapter):
                 analytic = False
             if analytic:  # the closed-form paths (engines._geometry), kept as they are
                 _check_curvature(i, p, s1, s2)
+                if "box" in (s1.kind, s2.kind):  # the box rounded by its edge radius (engines._narrow.SphereOnBox)
+                    from engines._contacts.compiled import kernel_law
+                    from engines._narrow import SphereOnBox
+
+                    sph, (bb, box) = (s1, (b2, s2)) if s1.kind == "sphere" else (s2, (b1, s1))
+                    self._sphere_box[len(self._bodies)] = SphereOnBox(
+                        float(sph.size[0]), _narrow.msf_shape(box, self.edge_radii.get(bb)), p.law, kernel_law,
+                        flip=s1.kind != "sphere")
                 self._bodies.append((b1, b2))
                 self._shapes.append((s1, s2))
                 self._narrow_of.append((-1, 0))
@@ -325,6 +334,8 @@ class PybulletAdapter(EngineAdapter):
                 self._narrow_of.append((len(self._narrow) - 1, q))
                 expanded.append(p)
         super().__init__(expanded)
+        for i, sb in self._sphere_box.items():  # each sphere-box pair's own law, its curvature following the point
+            self.manager.set_law(i, sb.law)
         for (u1, l1), (u2, l2) in self._bodies:
             pb.setCollisionFilterPair(u1, u2, l1, l2, enableCollision=0, physicsClientId=client)
         self._setup_batches()
@@ -371,13 +382,11 @@ class PybulletAdapter(EngineAdapter):
         #: jumps seen (bodies that moved other than by one adapter step), contacts they interrupted
         self.jumps = 0
         self.interrupted = 0
-        # run-time switch per pair (set_mode): 0 MSF, 1 pybullet's own contact, 2 both off;
-        # _handoff: a sphere at a box edge or corner handed to pybullet's contact while it lasts
+        # run-time switch per pair (set_mode): 0 MSF, 1 pybullet's own contact, 2 both off
         self._mode = np.zeros(n, np.int8)
-        self._handoff = np.zeros(n, bool)
-        #: sphere-box contacts handed to pybullet's own contact at an edge or a corner (count)
+        #: sphere-box contacts handed to pybullet's own contact: 0 since issue 13 (a box's edges and
+        #: corners are rounded, engines._narrow.SphereOnBox, and stay on MSF); kept for callers
         self.edge_handoffs = 0
-        self.edge_handoffs_of: dict[int, int] = {}
         self._held_warned: set[int] = set()  # held pairs warned about a too coarse step (_flag_held)
         self._mb_cache: dict = {}  # per step: a multibody's joint state and inverse mass matrix (_multibody)
         self._movable: dict[int, list[int]] = {}  # a multibody's movable joints
@@ -771,9 +780,9 @@ class PybulletAdapter(EngineAdapter):
         return list(range(self._narrow[k].first, self._narrow[k].first + self._narrow[k].n))
 
     def mode(self, which) -> str:
-        """The pair's mode ("msf", "engine" or "off"; an edge handoff counts as "engine")."""
+        """The pair's mode ("msf", "engine" or "off")."""
         i = self._pair_index(which)
-        return ("msf", "engine", "off")[1 if self._handoff[i] and self._mode[i] == 0 else int(self._mode[i])]
+        return ("msf", "engine", "off")[int(self._mode[i])]
 
     def _pair_index(self, which) -> int:
         if isinstance(which, (int, np.integer)) and not isinstance(which, bool):
@@ -787,13 +796,10 @@ class PybulletAdapter(EngineAdapter):
             raise ValueError(f"which = {which!r}: give a pair index or the pair's (body1, body2)") from None
 
     def _filter(self, i: int) -> None:
-        """pybullet's contact for pair i on exactly when its mode (or an edge handoff) says so."""
+        """pybullet's contact for pair i on exactly when its mode says so."""
         (u1, l1), (u2, l2) = self._bodies[i]
-        on = self._mode[i] == 1 or (self._mode[i] == 0 and self._handoff[i])
+        on = self._mode[i] == 1
         pb.setCollisionFilterPair(u1, u2, l1, l2, enableCollision=int(on), physicsClientId=self.client)
-
-    def _engine_contact_changed(self, i: int) -> None:
-        self._filter(i)
 
     @property
     def now(self) -> float:
@@ -1170,9 +1176,10 @@ class PybulletAdapter(EngineAdapter):
     def _world_shape(self, shape: _Shape, pose: _Pose):
         return pose.com + pose.rot @ shape.pos, pose.rot @ shape.rot
 
-    def _detect(self, i, poses, margin=math.inf):
-        """(x, n body2->body1, point mid-overlap) of pair i (:mod:`engines._geometry`); against a
-        plane or a box face, the sphere's surface point at a gap."""
+    def _detect(self, i, poses):
+        """(x, n body2->body1, point mid-overlap) of pair i (:mod:`engines._geometry`; a sphere on a
+        box: on the box rounded by its edge radius, engines._narrow.SphereOnBox, whose law takes the
+        curvature at the point); against a plane or a box, the sphere's surface point at a gap."""
         if self._narrow_of[i][0] >= 0:
             return self._narrow_slot(i, poses)
         (s1, s2) = self._shapes[i]
@@ -1187,8 +1194,11 @@ class PybulletAdapter(EngineAdapter):
         elif s2.kind == "plane":
             det = _geometry.sphere_plane(c1, r1, c2, R2 @ s2.size)
         else:
-            det, smooth = _geometry.sphere_box(c1, r1, c2, R2, s2.size)
-            self._edge(i, bool(smooth[0]), float(det.x[0]), margin + EDGE_REACH)
+            sb, mgr = self._sphere_box[i], self.manager
+            x, n, curv = sb.contact(c1, c2, R2)
+            sb.update(curv, bool(mgr.active[i]), mgr.refresh_law)
+            det = _geometry.Detection.of_sphere(np.asarray(c1, dtype=float)[None], np.array([r1]), np.array([x]),
+                                                n[None], np.full((1, 2), math.inf))
         if flip:
             det = det.swapped()
         if s2.kind == "sphere":
@@ -1215,7 +1225,7 @@ class PybulletAdapter(EngineAdapter):
             b1, b2 = self._bodies[i]
             j1, j2 = self._slot[i]
             poses = (bodies.pose(j1), bodies.pose(j2))
-            x, nrm, point = self._detect(i, poses, self._edge_margin(i, poses, grav, required))
+            x, nrm, point = self._detect(i, poses)
             v1 = poses[0].v + np.cross(poses[0].w, point - poses[0].com)
             v2 = poses[1].v + np.cross(poses[1].w, point - poses[1].com)
             v_rel = v1 - v2
@@ -1376,13 +1386,6 @@ class PybulletAdapter(EngineAdapter):
               + np.linalg.norm(poses[1].w) * ext[1])
         ab = np.linalg.norm(self._last_a_ext[i]) if self._have_last[i] else 2.0 * np.linalg.norm(grav)
         return CANDIDATE_FACTOR * (vb * self._dt + 0.5 * ab * self._dt**2)
-
-    def _edge_margin(self, i, poses, grav, required) -> float:
-        """Gap below which a sphere over a box edge is refused: a bound on the
-        distance the surfaces can close within one step (inf while in contact)."""
-        if required[i]:
-            return math.inf
-        return self._closing_bound(i, poses, grav)
 
     def _free(self, b) -> float:
         return 1.0 if (not self._articulated(b) and not self._fixed(b)) else 0.0
