@@ -43,6 +43,7 @@ point minus body 2's.
 from __future__ import annotations
 
 import abc
+import warnings
 
 import numpy as np
 
@@ -63,7 +64,7 @@ __all__ = ["EngineAdapter", "ENGINES", "get_engine", "RADIUS_RTOL", "STEPS_PER_C
            "ContactKinematics", "ContactReport", "PairSpec", "as_array", "check_law_curvature"]
 
 
-#: A pair not on MSF (set_mode) is shown to
+#: A pair not on MSF (set_mode, a sphere through a box handed to the engine) is shown to
 #: the contact manager as this gap [m], separating at this speed [m/s].
 FAR_GAP = 1.0
 FAR_SPEED = 1.0
@@ -101,13 +102,50 @@ class EngineAdapter(abc.ABC):
     #: names of each pair's bodies [(body1, body2)], set by the adapter
     pair_names: list[tuple[str, str]] = []
 
+    def _through(self, i: int, deep: bool, x: float, reach: float) -> None:
+        """A sphere deeper in a box than its own radius (``deep``: the
+        engine's x or the contact's own approach > R, its centre past the
+        box's surface: the bodies passed through each other,
+        a diverging model or a step far too large for the speeds) has no
+        contact law: the engine's own contact takes pair i
+        (``self._handoff``; counted in ``edge_handoffs``, a RuntimeWarning the
+        first time per pair; an MSF contact in progress ends without a
+        record) until a gap opens that a step cannot close (x < -``reach``
+        [m]: the surfaces' relative speed over a step and 1 mm; released at
+        x < 0, the contact's own integration found a new one inside the
+        step at the same speeds). Measured: a paddle on a
+        diverging servo (tests/test_held_link.py, kp 1e4 at 2 ms) swept
+        through the ball at 1e4 rad/s, the contact's x = 0.6 m with the
+        engine's a 0.2 m gap, and MSF's force drove the model to inf where
+        the engine's contact let the ball go. The
+        adapter's ``_engine_contact_changed(i)`` switches the engine's
+        contact."""
+        if deep and not self._handoff[i]:
+            self._handoff[i] = True
+            self.edge_handoffs += 1
+            self.manager.interrupt([i], f"the sphere passed through the box (handed to {self.name}'s contact)")
+            if self.edge_handoffs_of.setdefault(i, 0) == 0:
+                warnings.warn(f"pair {i} {self.pair_names[i]}: the sphere is {x:.3g} m deep in the box at "
+                              f"t = {self.now:.6g} s, deeper than its radius (the bodies passed through each "
+                              f"other: a diverging model, or a step too large for the speeds); no contact law "
+                              f"holds there, so {self.name}'s own contact takes the pair until a gap opens "
+                              "(adapter.edge_handoffs counts these; take a smaller time step)", RuntimeWarning,
+                              stacklevel=4)
+            self.edge_handoffs_of[i] += 1
+            self._engine_contact_changed(i)
+        elif self._handoff[i] and x < -reach:
+            self._handoff[i] = False
+            self._have_last[i] = False
+            self._engine_contact_changed(i)
+
     def _mask(self, kin: ContactKinematics) -> ContactKinematics:
         """Rows of pairs not on MSF (``self._mode`` != 0: the engine's contact
-        or off) are shown to the manager as far (FAR_GAP) and separating
-        (FAR_SPEED), so it neither starts nor continues a contact for them."""
-        if not self._mode.any():  # every pair on MSF (the usual case)
+        or off; ``self._handoff``: a sphere through a box, handed to the engine) are shown to
+        the manager as far (FAR_GAP) and separating (FAR_SPEED), so it neither
+        starts nor continues a contact for them."""
+        if not (self._mode.any() or self._handoff.any()):  # every pair on MSF (the usual case)
             return kin
-        off = self._mode[kin.pair] != 0
+        off = (self._mode[kin.pair] != 0) | self._handoff[kin.pair]
         if np.any(off):
             kin.x = np.where(off, -FAR_GAP, kin.x)
             kin.v_rel = np.where(off[:, None], kin.normal * FAR_SPEED, kin.v_rel)

@@ -134,10 +134,8 @@ from msf_contact._validate import ValidityWarning
 #: required_pairs (in contact, or with a timing correction to remove) are
 #: always listed.
 CANDIDATE_FACTOR = 2.0
-
-#: A sphere whose closest point on a box is an edge or a corner is handed to
-#: MuJoCo's contact once its gap is below this [m] plus the distance it can
-#: close in a step (the contact would begin on the edge).
+#: A sphere through a box is handed back to MSF beyond this gap [m] plus what a step closes (EngineAdapter._through).
+THROUGH_REACH = 1e-3
 
 _GEOM_NAMES = {
     mujoco.mjtGeom.mjGEOM_PLANE: "plane", mujoco.mjtGeom.mjGEOM_HFIELD: "hfield",
@@ -585,11 +583,14 @@ class MujocoAdapter(EngineAdapter):
         self.pair_names = [(str(p.body1), str(p.body2)) for p in self.pairs]  # one per contact slot
         self.manager.pair_names = self.pair_names
         self._sensors = self._msf_sensors()
-        # run-time switch per pair (set_mode): 0 MSF, 1 the engine's own contact, 2 both off
+        # run-time switch per pair (set_mode): 0 MSF, 1 the engine's own contact, 2 both off;
+        # _handoff: a sphere through a box handed to MuJoCo's contact while it lasts (EngineAdapter._through)
         self._mode = np.zeros(P, np.int8)
-        #: sphere-box contacts handed to MuJoCo's own contact: 0 since issue 13 (a box's edges and
-        #: corners are rounded, engines._narrow.SphereOnBox, and stay on MSF); kept for callers
+        self._handoff = np.zeros(P, bool)
+        #: sphere-box contacts handed to MuJoCo's own contact, the sphere deeper than its radius (count; a
+        #: box's edges and corners are rounded and stay on MSF since issue 13, engines._narrow.SphereOnBox)
         self.edge_handoffs = 0
+        self.edge_handoffs_of: dict[int, int] = {}  # per pair
         self._gkeys = [(min(p.geom1, p.geom2), max(p.geom1, p.geom2)) for p in self._pairs]
         self._excl_saved = np.array(model.exclude_signature, copy=True)
         self._lifted: set[int] = set()  # body-pair signatures whose <exclude> is lifted for the engine
@@ -930,10 +931,10 @@ class MujocoAdapter(EngineAdapter):
             self._apply_modes()
 
     def mode(self, which) -> str:
-        """The pair's mode ("msf", "engine" or "off")."""
+        """The pair's mode ("msf", "engine" or "off"; a sphere through a box handed over counts as "engine")."""
         key = self._key_of(which)
         i = self._gkeys.index(key)
-        return ("msf", "engine", "off")[int(self._mode[i])]
+        return ("msf", "engine", "off")[1 if self._handoff[i] and self._mode[i] == 0 else int(self._mode[i])]
 
     def _key_of(self, which) -> tuple[int, int]:
         if isinstance(which, (int, np.integer)) and not isinstance(which, bool):
@@ -951,7 +952,7 @@ class MujocoAdapter(EngineAdapter):
         return key
 
     def _engine_keys(self) -> set:
-        on = self._mode == 1
+        on = (self._mode == 1) | ((self._mode == 0) & self._handoff)
         return {self._gkeys[i] for i in np.flatnonzero(on)}
 
     def _apply_modes(self) -> None:
@@ -981,6 +982,9 @@ class MujocoAdapter(EngineAdapter):
             _install_filter(self)
         elif not need and self._filtering:
             _uninstall_filter(self)
+
+    def _engine_contact_changed(self, i: int) -> None:
+        self._apply_modes()
 
     @property
     def now(self) -> float:
@@ -1089,6 +1093,12 @@ class MujocoAdapter(EngineAdapter):
         mgr = self.manager
         x, n, curv = sb.contact(c1, d.geom_xpos[p.geom2], rot)
         if law:
+            deep = max(x, float(mgr.x[p.index]) if mgr.active[p.index] else x)  # the engine's or the contact's
+            if deep > p.radius1 or self._handoff[p.index]:  # the reach: the centre's relative speed over a step
+                v_c = (self._jacobian(p.body1, c1, self._jac) @ d.qvel
+                       - self._jacobian(p.body2, c1, self._jac2) @ d.qvel)
+                reach = CANDIDATE_FACTOR * float(np.linalg.norm(v_c)) * self.timestep + THROUGH_REACH
+                self._through(p.index, deep > p.radius1, x, reach)
             sb.update(curv, bool(mgr.active[p.index]), mgr.refresh_law)
         return Detection.of_sphere(np.asarray(c1, dtype=float)[None], np.array([p.radius1]), np.array([x]),
                                    n[None], np.array([[curv.R2a, curv.R2b]]))

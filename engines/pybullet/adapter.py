@@ -97,14 +97,12 @@ from engines.pybullet.narrow import LinkShape
 ADVANCE_ATOL = 1e-12
 ADVANCE_RTOL = 1e-9
 
-#: A sphere whose closest point on a box is an edge or a corner is handed to
-#: pybullet's contact once its gap is below the distance it can close in a
-#: step plus this [m] (the contact would begin on the edge).
-
 #: Candidates are handed to the manager while x > -CANDIDATE_FACTOR times
 #: the distance the surfaces can close in one step: a safety factor 2 on the
 #: constant-acceleration prediction, since a_ext is an estimate.
 CANDIDATE_FACTOR = 2.0
+#: A sphere through a box is handed back to MSF beyond this gap [m] plus what a step closes (EngineAdapter._through).
+THROUGH_REACH = 1e-3
 
 #: A link held by a user constraint (``createConstraint``) is solved rigidly by
 #: pybullet at the step, while the MSF sub-cycle sees only the link's inertia:
@@ -382,11 +380,14 @@ class PybulletAdapter(EngineAdapter):
         #: jumps seen (bodies that moved other than by one adapter step), contacts they interrupted
         self.jumps = 0
         self.interrupted = 0
-        # run-time switch per pair (set_mode): 0 MSF, 1 pybullet's own contact, 2 both off
+        # run-time switch per pair (set_mode): 0 MSF, 1 pybullet's own contact, 2 both off;
+        # _handoff: a sphere through a box handed to pybullet's contact while it lasts (EngineAdapter._through)
         self._mode = np.zeros(n, np.int8)
-        #: sphere-box contacts handed to pybullet's own contact: 0 since issue 13 (a box's edges and
-        #: corners are rounded, engines._narrow.SphereOnBox, and stay on MSF); kept for callers
+        self._handoff = np.zeros(n, bool)
+        #: sphere-box contacts handed to pybullet's own contact, the sphere deeper than its radius (count; a
+        #: box's edges and corners are rounded and stay on MSF since issue 13, engines._narrow.SphereOnBox)
         self.edge_handoffs = 0
+        self.edge_handoffs_of: dict[int, int] = {}
         self._held_warned: set[int] = set()  # held pairs warned about a too coarse step (_flag_held)
         self._mb_cache: dict = {}  # per step: a multibody's joint state and inverse mass matrix (_multibody)
         self._movable: dict[int, list[int]] = {}  # a multibody's movable joints
@@ -780,9 +781,9 @@ class PybulletAdapter(EngineAdapter):
         return list(range(self._narrow[k].first, self._narrow[k].first + self._narrow[k].n))
 
     def mode(self, which) -> str:
-        """The pair's mode ("msf", "engine" or "off")."""
+        """The pair's mode ("msf", "engine" or "off"; a sphere through a box handed over counts as "engine")."""
         i = self._pair_index(which)
-        return ("msf", "engine", "off")[int(self._mode[i])]
+        return ("msf", "engine", "off")[1 if self._handoff[i] and self._mode[i] == 0 else int(self._mode[i])]
 
     def _pair_index(self, which) -> int:
         if isinstance(which, (int, np.integer)) and not isinstance(which, bool):
@@ -796,10 +797,13 @@ class PybulletAdapter(EngineAdapter):
             raise ValueError(f"which = {which!r}: give a pair index or the pair's (body1, body2)") from None
 
     def _filter(self, i: int) -> None:
-        """pybullet's contact for pair i on exactly when its mode says so."""
+        """pybullet's contact for pair i on exactly when its mode (or a hand-over, _through) says so."""
         (u1, l1), (u2, l2) = self._bodies[i]
-        on = self._mode[i] == 1
+        on = self._mode[i] == 1 or (self._mode[i] == 0 and self._handoff[i])
         pb.setCollisionFilterPair(u1, u2, l1, l2, enableCollision=int(on), physicsClientId=self.client)
+
+    def _engine_contact_changed(self, i: int) -> None:
+        self._filter(i)
 
     @property
     def now(self) -> float:
@@ -1196,6 +1200,9 @@ class PybulletAdapter(EngineAdapter):
         else:
             sb, mgr = self._sphere_box[i], self.manager
             x, n, curv = sb.contact(c1, c2, R2)
+            deep = max(x, float(mgr.x[i]) if mgr.active[i] else x)  # the engine's or the contact's
+            if deep > r1 or self._handoff[i]:  # the reach: what the surfaces can close in a step
+                self._through(i, deep > r1, x, self._closing_bound(i, poses, self._gravity()) + THROUGH_REACH)
             sb.update(curv, bool(mgr.active[i]), mgr.refresh_law)
             det = _geometry.Detection.of_sphere(np.asarray(c1, dtype=float)[None], np.array([r1]), np.array([x]),
                                                 n[None], np.full((1, 2), math.inf))
