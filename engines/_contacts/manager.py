@@ -165,8 +165,10 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         #: the recovering surface of the pair's last contact if it ended at force zero with x > 0
         #: (state.RECOVERY_DOC): its overlap there [m] (0: none), the end time [s], the rate E'/(3 eta'_E) [1/s]
         self.x_res, self.t_res, self.k_res = z.copy(), z.copy(), z.copy()
-        #: x_r(t0) of the step the pair's current contact began in [m] (0: a restart from touching):
-        #: its onset may lie that deep without storing energy no force worked for (state.RECOVERY_DOC)
+        #: x_r(t0) of the step the pair's current contact began in [m] (0: a restart from touching), or
+        #: for a contact resumed inside the step its last contact ended in at force zero, the overlap it
+        #: resumed at (at most that end's): its onset may lie that deep without storing energy no force
+        #: worked for (state.RECOVERY_DOC)
         self.x_surface_onset = z.copy()
         self._t_now = 0.0  # the time of the current (or last) step start [s]
         self.x_turn = fl[K.F_XTURN]  #: approach at the first maximum compression [m]

@@ -147,6 +147,14 @@ class Records:
                      float(SUBSTEPS_PER_TANGENTIAL), self._point, self.in_island, self._island_contact,
                      self.tau_est, self.v_n_in, self.v_n_used, self.m_eff, self.n_in, self.p_in, self.u_in,
                      self.vc_in, self.x_onset, self.turned, self.outside, self._fl, np.empty((2, 3)))
+        # a contact that resumes in the step in which its pair's last contact ended at force zero still
+        # overlapping resumes on the surface that end left indented (state.RECOVERY_DOC: inside a step the free
+        # flight takes that surface at the body, so nothing restarts and no energy is created): its onset's
+        # x_surface_onset is that surface's indentation, the body's x, at most the end's overlap x_res
+        res = (self.x_res[pp] > 0.0) & (self.t_res[pp] >= self._t_now)
+        if np.any(res):
+            q = pp[res]
+            self.x_surface_onset[q] = np.minimum(np.maximum(self.x_onset[q], 0.0), self.x_res[q])
         if capped.any():  # an onset past the law's range: flagged from the start
             self.outside[pp[capped]] = True
         for q in pp.tolist():

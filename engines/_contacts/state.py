@@ -115,7 +115,11 @@ In the manager. A contact ended by force at x_e > 0 keeps (x_e, t_e, rate)
 per pair (``x_res``, ``t_res``, ``k_res``; _end). Inside a step the free
 flight after such an end takes a closing body at x >= 0 as in contact (the
 surface at the body; engines._contacts.reference._free_flight), so nothing
-is restarted there. Between steps (ContactManager._own_gaps) a pair not in
+is restarted there; such a contact's ``x_surface_onset`` is the overlap it
+resumes at (at most the end's x_e: Records._begin), so it does not read as
+an onset found deep (scripts/pile.py's ``deep_onsets``: every onset that
+read as deep in the 5- and 32-sphere low pours, 9 and 21 in MuJoCo, 75 and
+20 in pybullet, was such a resumption; docs/engines.md). Between steps (ContactManager._own_gaps) a pair not in
 contact whose kept gap g is an overlap starts the step from min(g, x_r(t0), x_e)
 (x_e the engine's own overlap: the surface is never deeper than the body the
 engine shows; the ant's feet, chain links whose kept gap led the engine's by
