@@ -3,7 +3,7 @@ the pile section: "the engine's position lead, frozen by settled steps").
 
     .venv/bin/python scripts/offset_trace.py --engine pybullet --n 3 --pairs 0 5 12 --steps 3000
 
-scripts/pile.py's box (``--n`` spheres, ``--side`` a row, dt = 1 ms). For each
+scripts/pile.py's box (``--n`` spheres, ``--side`` a row, ``--pour`` grid or low, dt = 1 ms). For each
 listed pair (laws_and_pairs' order) it reads, at every step start, the
 engine's overlap x_e the manager is handed and the manager's own x, and
 splits e = x_e - x of the pair's last contact into: e at its onset (the
@@ -31,8 +31,9 @@ import engines._contacts.state as state  # noqa: E402
 import pile  # noqa: E402
 
 
-def trace(engine: str, n: int, side: int, pairs: list[int], steps: int) -> dict:
-    """The split of the module docstring for ``pairs`` after ``steps`` steps of 1 ms."""
+def trace(engine: str, n: int, side: int, pairs: list[int], steps: int, pour: str = "grid") -> dict:
+    """The split of the module docstring for ``pairs`` after ``steps`` steps of 1 ms of the pour
+    ``pour`` (scripts/pile.py POURS)."""
     moves: dict[int, float] = {}
     relax = state.relax
 
@@ -44,7 +45,7 @@ def trace(engine: str, n: int, side: int, pairs: list[int], steps: int) -> dict:
 
     state.relax = counting
     try:
-        ad, ctx, _speeds = (pile.build_mujoco if engine == "mujoco" else pile.build_pybullet)(n, side, 1e-3)
+        ad, ctx, _speeds = (pile.build_mujoco if engine == "mujoco" else pile.build_pybullet)(n, side, 1e-3, pour=pour)
         mgr = ad.manager
         own = mgr._own_gaps
         half_dt = 0.5 * mgr.dt
@@ -103,6 +104,7 @@ def main(argv=None) -> None:
     ap.add_argument("--side", type=int, default=1)
     ap.add_argument("--pairs", type=int, nargs="+", default=[0, 5, 12])
     ap.add_argument("--steps", type=int, default=3000)
+    ap.add_argument("--pour", choices=pile.POURS, default="grid", help="how the spheres start (scripts/pile.py POURS)")
     a = ap.parse_args(argv)
     for name, v in (("n", a.n), ("side", a.side), ("steps", a.steps)):
         if v < 1:
@@ -111,7 +113,7 @@ def main(argv=None) -> None:
     for p in a.pairs:
         if not 0 <= p < n_pairs:
             raise ValueError(f"pairs: {p!r} is outside [0, {n_pairs - 1}]")
-    print(json.dumps(trace(a.engine, a.n, a.side, a.pairs, a.steps)))
+    print(json.dumps(trace(a.engine, a.n, a.side, a.pairs, a.steps, a.pour)))
 
 
 if __name__ == "__main__":
