@@ -40,9 +40,10 @@ POUR_SUPPORT_RTOL = 1e-3
 POUR_INTERNAL_ATOL = 2e-7
 #: The engine's own overlaps (scripts/pile.py engine_overlaps: from the sphere centres) against the same,
 #: largest over the contacts [m]: measured 6.2 um (MuJoCo) and 0.27 um (pybullet). What is left is the
-#: engine's position lead over the internal overlap that settled stretches entered closing leave (each
-#: (dt/2) x'; docs/engines.md, "Rest at the static overlaps"), which moves by um with any change of the
-#: trajectory; the bound, 10 um, is one free step's g dt^2 (9.8 um): it catches a step left out of the
+#: engine's position lead over the internal overlap, c = e - (dt/2) x', that settled stretches entered
+#: closing leave (each (dt/2) x') and kept gaps carry into restarts on a recovering surface (MuJoCo's
+#: 6.2 um: the top sphere's restart at step 884; docs/engines.md, "Rest at the static overlaps"), which
+#: moves by um with any change of the trajectory; the bound, 10 um, is one free step's g dt^2 (9.8 um): it catches a step left out of the
 #: integration or a contact restarted from touching (19.8 um in the 2-sphere box before the surface's
 #: recovery, state.RECOVERY_DOC), not the lead itself.
 POUR_ENGINE_ATOL = 1e-5
