@@ -76,6 +76,63 @@ class ConvexMesh:
             raise AttributeError(name)
         return getattr(self.mesh, name)
 
+#: A mesh whose convex hull has a flat face (coplanar hull facets holding at
+#: least 4 vertices) wider than this share of its bounding radius can rest
+#: on that face, and the engines give one point of it (pybullet's
+#: getClosestPoints) or its vertices (MuJoCo): its default number of slots
+#: is COARSE_MESH_SLOTS, as a box's corners, not 1. With one slot the
+#: point jumps between the face's vertices during a contact: pybullet_data's
+#: duck_vhacd.obj (its flat face 41.5 mm on a 57 mm bounding radius) rocking
+#: on that face had its point jump 30-40 mm within a contact and records
+#: flagged "energy gained in a contact" (COR 1.4-2.1); with 4 none. A smooth
+#: mesh (an icosphere: every hull face a triangle) keeps 1: its bottom
+#: vertices are samples of one contact (several would each carry the
+#: sphere's whole law).
+FLAT_FACE_SHARE = 0.5
+COARSE_MESH_SLOTS = 4
+#: Hull facets whose plane equations (unit normal, offset over the bounding
+#: radius) agree to this are one flat face (float32 vertices: ~1e-7).
+COPLANAR_TOL = 1e-5
+
+
+def flat_face(vertices) -> tuple[float, np.ndarray | None]:
+    """The widest flat face of the convex hull of ``vertices`` [m] (n, 3):
+    (its width [m], the largest distance between two of its vertices; its
+    outward unit normal (3,)), a face being coplanar hull facets with at
+    least 4 vertices; (0, None) when every face is a triangle."""
+    from scipy.spatial import ConvexHull
+
+    V = np.asarray(vertices, dtype=float).reshape(-1, 3)
+    hull = ConvexHull(V)
+    scale = float(np.max(np.linalg.norm(V - V.mean(axis=0), axis=1)))
+    key = np.round(np.column_stack([hull.equations[:, :3], hull.equations[:, 3] / scale]) / COPLANAR_TOL)
+    faces: dict = {}
+    normal: dict = {}
+    for simplex, eq, k in zip(hull.simplices, hull.equations, map(tuple, key.astype(np.int64))):
+        faces.setdefault(k, set()).update(int(v) for v in simplex)
+        normal[k] = eq[:3]
+    best, n = 0.0, None
+    for k, verts in faces.items():
+        if len(verts) >= 4:
+            P = V[sorted(verts)]
+            w = float(np.max(np.linalg.norm(P[:, None, :] - P[None, :, :], axis=2)))
+            if w > best:
+                best, n = w, np.asarray(normal[k], dtype=float)
+    return best, n
+
+
+def default_mesh_slots(vertices) -> int:
+    """The contact slots of a mesh geom given no ``mesh_slots`` [-]:
+    COARSE_MESH_SLOTS when its hull has a flat face wider than
+    FLAT_FACE_SHARE of its bounding radius (:func:`flat_face`; vertices [m]
+    (n, 3) in the geom's frame), else 1."""
+    V = np.asarray(vertices, dtype=float).reshape(-1, 3)
+    if V.shape[0] < 4:
+        return 1
+    r = float(np.max(np.linalg.norm(V, axis=1)))
+    return COARSE_MESH_SLOTS if flat_face(V)[0] > FLAT_FACE_SHARE * r else 1
+
+
 #: A point of the engine's list continues a slot when it is within this
 #: share of the body's size (its geom's largest half-extent) of the slot's
 #: last point in body 1's frame; a box's corners are a size apart.

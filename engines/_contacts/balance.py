@@ -94,6 +94,10 @@ class IslandBalance:
         self.warned_gain = 0.0
         self.checked = 0  #: island steps checked
         self.discarded = 0  #: island steps not checked: a body jumped before the step's end was read (forget)
+        #: island steps not checked because the probe gave no value for one of their bodies (a link of a
+        #: chain), and the pairs of those islands; the adapters say so (PybulletAdapter.island_energy_unchecked)
+        self.unchecked = 0
+        self.unchecked_pairs: set[int] = set()
 
     @staticmethod
     def finished(mgr, pp) -> float:
@@ -147,7 +151,9 @@ class IslandBalance:
         (before it is integrated); S0 its rows' stored energy now; probed: the
         probe's (T, U, q, m) of keys if read already."""
         T0, U0, q0, m = (np.asarray(a, dtype=float) for a in (self.probe(keys) if probed is None else probed))
-        if not all(np.all(np.isfinite(a)) for a in (T0, U0, q0, m)):
+        if not all(np.all(np.isfinite(a)) for a in (T0, U0, q0, m)):  # a body the probe cannot account for
+            self.unchecked += 1
+            self.unchecked_pairs.update(int(p) for p in np.asarray(pp).reshape(-1))
             return
         # the scale of the relative tolerance: kinetic energy and the normal energy stored in contact, at
         # least the kinetic energy of the bodies at the manager's smallest onset speed (round-off below it)

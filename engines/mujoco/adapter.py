@@ -159,7 +159,9 @@ _NARROW = ("sphere", "plane", "box", "capsule", "cylinder", "ellipsoid", "mesh")
 #: a coarse hull whose vertices are contacts, as a box's corners are (the
 #: duck_vhacd.obj hull rolls from vertex to vertex: with one slot a new vertex
 #: already below the plane took the slot as a deep onset, COR 22 in a step),
-#: takes more through the adapter's ``mesh_slots``.
+#: takes engines._narrow.COARSE_MESH_SLOTS by default when its hull has a
+#: flat face it can rest on (engines._narrow.default_mesh_slots), or the
+#: adapter's ``mesh_slots``.
 NARROW_SLOTS = {"box": 4, "cylinder": 4, "capsule": 2}
 _ZERO3 = np.zeros(3)  # what body 2 may be; body 1 is a sphere
 
@@ -475,7 +477,8 @@ class MujocoAdapter(EngineAdapter):
         self._own_on: set[tuple[int, int]] = set()  # geom pairs MuJoCo would collide (no <exclude>)
         #: edge radius [m] per box or cylinder geom name (msf_contact.shapes.DEFAULT_EDGE_RADIUS otherwise)
         self.edge_radii = dict(edge_radii or {})
-        #: contact points managed per mesh geom name (default 1: a smooth mesh; NARROW_SLOTS)
+        #: contact points managed per mesh geom name (default engines._narrow.default_mesh_slots: 4 for a
+        #: hull with a flat face it can rest on, 1 for a smooth mesh; NARROW_SLOTS)
         self.mesh_slots = dict(mesh_slots or {})
         for name, k in self.mesh_slots.items():
             if int(k) != k or not 1 <= k <= 8:
@@ -726,7 +729,7 @@ class MujocoAdapter(EngineAdapter):
         if t1 == "plane":
             raise ValueError(f"pair {i}: body1 = {p.body1!r} is a plane; body1 must be the curved body "
                              f"(the normal points from body2 to body1): swap body1 and body2")
-        from engines._narrow import SlotMatcher, make_shape
+        from engines._narrow import SlotMatcher, default_mesh_slots, make_shape
 
         shapes = []
         for g, t in ((g1, t1), (g2, t2)):
@@ -736,8 +739,9 @@ class MujocoAdapter(EngineAdapter):
                 verts = m.mesh_vert[int(m.mesh_vertadr[k]):int(m.mesh_vertadr[k]) + int(m.mesh_vertnum[k])]
             shapes.append(make_shape(t, m.geom_size[g], edge_radius=self.edge_radii.get(m.geom(g).name),
                                      vertices=verts))
-        slots = [NARROW_SLOTS.get(t, 1) if t != "mesh" else int(self.mesh_slots.get(m.geom(g).name, 1))
-                 for g, t in ((g1, t1), (g2, t2))]
+        slots = [NARROW_SLOTS.get(t, 1) if t != "mesh" else int(self.mesh_slots.get(
+                     m.geom(g).name, default_mesh_slots(s.vertices)))
+                 for g, t, s in ((g1, t1, shapes[0]), (g2, t2, shapes[1]))]
         n_slots = max(slots[0], slots[1] if t2 != "plane" else 1)
         k = len(self._narrow_pairs)
         self._narrow_pairs.append((g1, g2, shapes[0], shapes[1], SlotMatcher(n_slots, float(m.geom_rbound[g1]))))
