@@ -66,7 +66,11 @@ NOC = 5
 LC_RA, LC_RB, LC_KHA, LC_KHB, LC_MU, LC_K, LC_A, LC_GM, LC_RM, LC_FZ, LC_KPMODE, LC_SRA, LC_SRB = range(13)
 # CODE_SIDE only: the end's width radius R_w, end radius e, straight length L [m], e (1 - cos tilt) [m], rise (sin)
 LC_SRW, LC_SE, LC_SL, LC_SDROP, LC_SRISE = range(13, 18)
-NLC = 18  # LC_SRA, LC_SRB: sqrt(R_a), sqrt(R_b)
+#: CODE_SIDE of a cylinder's rim ring (engines._narrow.RimArcLaw) when lc[LC_SRING] != 0: then LC_SRW is the
+#: rim's bottom radius Q [m], LC_SE the edge radius [m], LC_SL the slot's sector half-angle [rad], LC_SDROP the
+#: ring's depth amplitude Q sin(tilt) [m] and LC_SRISE the slot's angle from the rim's lowest point [rad]
+LC_SRING = 18
+NLC = 19  # LC_SRA, LC_SRB: sqrt(R_a), sqrt(R_b)
 KP_MSF, KP_SMALL, KP_HERTZ = 0, 1, 2
 
 # layout of y, as engines._contacts
@@ -100,10 +104,31 @@ def _kp(x, R, mode):
 
 
 @jit_inline
+def _overlap(a, b, c, d):
+    """Length of [a, b] and [c, d] in common (0 if disjoint)."""
+    return max(0.0, min(b, d) - max(a, c))
+
+
+@jit_inline
+def _ring_parts(lc, x):
+    """(2 rho0, arc) [m] of a RimArcLaw slot at x > 0 [m] (engines._narrow.RimArcLaw._width_one)."""
+    e, Q, h, c, psi = lc[LC_SE], lc[LC_SRW], lc[LC_SL], lc[LC_SDROP], lc[LC_SRISE]
+    rho0 = math.sqrt(max(x * (2.0 * e - x), 0.0))
+    x0 = x + c * (1.0 - math.cos(psi))  # the rim's lowest point
+    phi0 = math.pi if (c <= 0.0 or x0 >= 2.0 * c) else math.acos(1.0 - x0 / c)
+    tp = 2.0 * math.pi
+    ang = (_overlap(psi - h, psi + h, -phi0, phi0) + _overlap(psi - h, psi + h, tp - phi0, tp + phi0)
+           + _overlap(psi - h, psi + h, -tp - phi0, -tp + phi0))
+    return 2.0 * rho0, Q * ang
+
+
+@jit_inline
 def _side_parts(lc, x):
     """(w a, b) [m] of a SideEndLaw end at x >= 0 [m] (engines._narrow.SideEndLaw._width_one)."""
     if x <= 0.0:
         return 0.0, 0.0
+    if lc[LC_SRING] != 0.0:
+        return _ring_parts(lc, x)
     e, L, rise = lc[LC_SE], lc[LC_SL], lc[LC_SRISE]
     a = 2.0 * math.sqrt(max(x * (2.0 * lc[LC_SRW] - x), 0.0))
     rho0 = math.sqrt(max(x * (2.0 * e - x), 0.0))

@@ -838,6 +838,332 @@ class SideLine:
         return per
 
 
+# ------------------------------------------------------ cylinder on its end ---
+#: The slots of a cylinder's rim ring (:class:`RimRing`) are placed anew
+#: (slot 0 at the rim's lowest point) only between contacts, and only while
+#: the ring's depth variation around it, 2 (R - rho) sin(tilt), is above this
+#: share of the edge radius rho. Standing flat the lowest direction is
+#: undefined (it turns at random with the last 1e-9 rad of tilt): slots that
+#: followed it would jump around the rim; below the share the whole ring
+#: lies within 1e-3 rho (1 um for the default 1 mm) of one height, so where
+#: the slots sit changes no approach by more than that.
+RING_FOLLOW_SHARE = 1e-3
+
+
+class RimArcLaw(SideEndLaw):
+    """One slot's share of the MSF line law of a cylinder's rim ring on a
+    plane (an extension of the paper, docs/theory.md 2a and docs/engines.md):
+    a cylinder of radius R on its end face touches with its rim, the torus
+    of tube radius rho (the edge radius) around the circle of radius
+    R_c = R - rho, a ring-shaped line contact of length 2 pi R_c and width
+    2 rho0, rho0 = sqrt(x (2 rho - x)) the tube's half chord (the flat face
+    inside it is a flat punch, which carries nothing here, as a box's face).
+    The ring is carried by N slots (:class:`RimRing`), slot k at the angle
+    psi_k from the rim's lowest point, each carrying the arc of its sector
+    [psi_k - pi/N, psi_k + pi/N] that is below the plane, at its own
+    approach x (as a lying side's end carries its half, SideEndLaw):
+
+        F_n = W (2 eta'_E x' + 2/3 E' x),   W = (2 rho0 + Q A) / 2,
+
+    A the angle of the sector within [-phi0, phi0] (the ring taken
+    periodic), phi0 the half-angle of the ring below the plane: the ring's
+    bottom at phi from the lowest point is c (1 - cos phi) above it,
+    c = Q sin(tilt), Q = R_c + rho sin(tilt) the radius of the rim's bottom
+    (tilt: the axis from the plane's normal), so with the lowest point at
+    x0 = x + c (1 - cos psi_k), cos phi0 = 1 - x0/c (phi0 = pi for x0 >= 2c).
+    Three properties: standing flat (c = 0) every slot carries its whole
+    sector, W = (2 rho0 + 2 pi R_c / N)/2, the line law of
+    ``SideFootprint(rho, 2 pi R_c / N, caps="flat")``, so the ring is N
+    such arcs, each with m/N (the onset mass, :meth:`RimRing.slots`);
+    tilted, the lowest slot carries the arc 2 Q phi0 ~ 2 sqrt(2 x R_w)
+    with R_w = Q / sin(tilt) = (R - rho + rho sin(tilt)) / sin(tilt), the
+    rim torus' radius along the rim at that point, i.e. the rim torus'
+    point contact (13) with the msf k_p of (15) (its chord 2 sqrt(x (2 R_w -
+    x))) to O(phi0^2 / 6) (the arc against the chord); and W is continuous
+    in x and the tilt (a slot's W jumps at its own x = 0 only: the elastic
+    force W x is continuous there, the viscous term is the line law's touch-
+    down force, as every linear line law has). The compiled kernel has it as
+    CODE_SIDE with lc[LC_SRING] set (engines._kernel._ring_parts), equal to
+    these methods (tests/test_island_kernel.py). The pose (tilt, psi_k) is
+    the body's at each step except in a contact that has not settled
+    (SideEndLaw's reason: :meth:`SideLine.slots`)."""
+
+    def __init__(self, template: MSFLaw, radius: float, edge_radius: float, n_slots: int):
+        if not isinstance(template, MSFLaw) or template.kp_mode != "msf" or template.omega == "paper":
+            raise ValueError(f"a line contact has only the msf law with kp_mode 'msf' and omega not 'paper' "
+                             f"(docs/theory.md 2a); the pair's law is {template.name!r} with kp_mode "
+                             f"{template.kp_mode!r}")
+        if int(n_slots) != n_slots or n_slots < 3:
+            raise ValueError(f"n_slots = {n_slots!r} must be a whole number >= 3 (a ring on fewer points tips)")
+        self.ring_radius = float(radius) - float(edge_radius)
+        self.half_angle = math.pi / int(n_slots)
+        fp = SideFootprint(float(edge_radius), 2.0 * self.half_angle * self.ring_radius, 0.0, "flat")
+        MSFLaw.__init__(self, template.pair, Curvature.side_on_plane(fp), omega=template.omega, kp_mode="msf",
+                        separation=template.separation, mu=template.mu, temperature=template.temperature,
+                        strict=template.strict)
+        self.end_radius, self.length, self.rounded = float(edge_radius), fp.length, False
+        self.tilt, self.rise, self.offset = 0.0, 0.0, 0.0
+        self.mass_factor = 1.0
+
+    def set_ring_pose(self, tilt: float, offset: float) -> None:
+        """The cylinder's tilt [rad] (its axis from the plane's normal) and this
+        slot's angle from the rim's lowest point [rad] (any sign; folded to [0, pi])."""
+        self.tilt = float(tilt)
+        self.offset = abs(math.remainder(float(offset), 2.0 * math.pi))
+
+    def _ring(self) -> tuple[float, float]:
+        """(Q, c) [m] at the current pose (the class docstring)."""
+        s = math.sin(self.tilt)
+        q = self.ring_radius + self.end_radius * s
+        return q, q * s
+
+    def fill_kernel_constants(self, lc: np.ndarray) -> None:
+        """Write engines._kernel's ring constants (CODE_SIDE with LC_SRING) of the current pose into lc (NLC,)."""
+        q, c = self._ring()
+        lc[_K.LC_SRING] = 1.0
+        lc[_K.LC_SRW], lc[_K.LC_SE], lc[_K.LC_SL], lc[_K.LC_SDROP], lc[_K.LC_SRISE] = (
+            q, self.end_radius, self.half_angle, c, self.offset)
+
+    def _parts(self, x):
+        """(2 rho0, Q A) [m] (n,) at the approach x [m] (n,) (the class docstring)."""
+        x = np.maximum(np.asarray(x, dtype=float), 0.0)
+        q, c = self._ring()
+        e, h, psi = self.end_radius, self.half_angle, self.offset
+        rho0 = np.sqrt(np.maximum(x * (2.0 * e - x), 0.0))
+        x0 = x + c * (1.0 - math.cos(psi))
+        if c <= 0.0:
+            phi0 = np.full(x.shape, math.pi)
+        else:
+            phi0 = np.where(x0 >= 2.0 * c, math.pi, np.arccos(np.clip(1.0 - x0 / c, -1.0, 1.0)))
+        lo, hi, tp = psi - h, psi + h, 2.0 * math.pi
+        ang = sum(np.maximum(0.0, np.minimum(hi, k * tp + phi0) - np.maximum(lo, k * tp - phi0)) for k in (-1, 0, 1))
+        on = x > 0.0
+        return np.where(on, 2.0 * rho0, 0.0), np.where(on, q * ang, 0.0)
+
+    def _width_one(self, x: float) -> float:
+        """W [m] of one approach, in scalar arithmetic (engines._kernel._ring_parts' formulas)."""
+        if x <= 0.0:
+            return 0.0
+        q, c = self._ring()
+        e, h, psi = self.end_radius, self.half_angle, self.offset
+        rho0 = math.sqrt(max(x * (2.0 * e - x), 0.0))
+        x0 = x + c * (1.0 - math.cos(psi))
+        phi0 = math.pi if (c <= 0.0 or x0 >= 2.0 * c) else math.acos(1.0 - x0 / c)
+        tp = 2.0 * math.pi
+        ang = sum(max(0.0, min(psi + h, k * tp + phi0) - max(psi - h, k * tp - phi0)) for k in (-1, 0, 1))
+        return 0.5 * (2.0 * rho0 + q * ang)
+
+    def hertz_scale(self, v_n0, mass):
+        """A length of the order of the elastic x_max, never above it [m] (n,):
+        the smaller of the slot's whole sector touching (W >= S/2, S the
+        sector's length: 1/2 m v^2 <= 1/3 E' S x^2) and the lowest point
+        alone (Hertz for the rim torus' point, sqrt(rho R_w))."""
+        v, m = np.asarray(v_n0, dtype=float), np.asarray(mass, dtype=float)
+        E = self.moduli.E
+        x_line = np.sqrt(3.0 * m * v * v / (E * self.length))
+        s = math.sin(self.tilt)
+        if s <= 0.0:
+            return x_line
+        q, _ = self._ring()
+        return np.minimum(x_line, cf.hertz_x_max(m, v, E, math.sqrt(self.end_radius * q / s)))
+
+
+@dataclass(frozen=True)
+class RimPoints:
+    """Points of a cylinder's rim against a plane (world frame): x [m] (k,)
+    the approach of the rim's bottom in each slot's meridian (negative: a
+    gap), lowest [m] (k, 3) those points, tilt [rad] of the axis from the
+    plane's unit normal ``normal`` (3,) (toward the body), lowest_angle
+    [rad] the angle about the axis, from the geom's x, of the direction in
+    which the rim is lowest (nan standing exactly flat)."""
+
+    x: np.ndarray
+    lowest: np.ndarray
+    tilt: float
+    lowest_angle: float
+    normal: np.ndarray
+
+
+def rim_points(shape: Cylinder, pos, rot, plane_pos, plane_normal, angles) -> RimPoints:
+    """:class:`RimPoints` of ``shape`` (:class:`msf_contact.shapes.Cylinder`,
+    frame at ``pos`` [m] (3,), ``rot`` (3, 3), axis along its z) against the
+    plane through ``plane_pos`` [m] (3,) with unit normal ``plane_normal``
+    (3,), at the rim angles ``angles`` [rad] (k,) about the axis from the
+    geom's x. The rim is the torus of the end toward the plane: its tube
+    circle of radius rho in the meridian at angle phi is centred R - rho
+    from the axis, half_length - rho from the middle; its lowest point lies
+    on the rim's quarter arc between the end face and the side (at the
+    face's edge where the face, tilted away, is lower)."""
+    n = np.asarray(plane_normal, dtype=float)
+    rot = np.asarray(rot, dtype=float).reshape(3, 3)
+    xg, yg, z = rot[:, 0], rot[:, 1], rot[:, 2]
+    zn = float(z @ n)
+    a = -z if zn > 0.0 else z  # the end toward the plane: its outward axis
+    radial = -(n - zn * z)  # across the axis, toward the plane: |radial| = sin(tilt)
+    s = float(np.linalg.norm(radial))
+    low = math.atan2(float(radial @ yg), float(radial @ xg)) if s > 0.0 else math.nan
+    rho, rc = shape.edge_radius, shape.radius - shape.edge_radius
+    ang = np.asarray(angles, dtype=float).reshape(-1)
+    r = np.cos(ang)[:, None] * xg[None, :] + np.sin(ang)[:, None] * yg[None, :]
+    centres = np.asarray(pos, dtype=float)[None, :] + (shape.half_length - rho) * a[None, :] + rc * r
+    beta = np.clip(np.arctan2(-(r @ n), -float(n @ a)), 0.0, 0.5 * math.pi)
+    lowest = centres + rho * (np.cos(beta)[:, None] * a[None, :] + np.sin(beta)[:, None] * r)
+    x = -((lowest - np.asarray(plane_pos, dtype=float)) @ n)
+    return RimPoints(x, lowest, math.asin(min(s, 1.0)), low, n.copy())
+
+
+def _blended_mass_factors(laws, slots, x, nWn) -> None:
+    """Set each law's onset mass_factor m / (sum_j beta_j n.W_ij.n / n.W_ii.n)
+    for the slots ``slots`` (their laws ``laws[s]``), beta_j the share of slot
+    j's force against slot s's at the expected depth (SideEndLaw.set_pose's
+    beta, over every slot with a law): slots falling together in one
+    collision share the mass by their forces. x [m] (n,) the slots'
+    approaches; nWn (n, n) [1/kg] between their points."""
+    for s in slots:
+        law, w_own = laws[s], float(nWn[s, s])
+        if w_own <= 0.0:
+            continue
+        x_e = law._expected_depth(1.0 / w_own)
+        mine = law._width_one(x_e)
+        total = w_own
+        for j in range(len(laws)):
+            if j != s and laws[j] is not None:
+                beta = min(laws[j]._width_one(x_e + float(x[j] - x[s])) / mine, 1.0) if mine > 0.0 else 0.0
+                total += beta * float(nWn[s, j])
+        law.mass_factor = w_own / total if total > 0.0 else 1.0
+
+
+class RimRing:
+    """A cylinder's rim ring on a plane, as both adapters carry it (through
+    :class:`CylinderOnPlane`): N slots (the pair's, 4) at material angles
+    about the axis, slot k at 2 pi k / N from the rim's lowest point when it
+    is placed, each carrying :class:`RimArcLaw` at its meridian's rim
+    bottom (:func:`rim_points`). A slot in a moving contact (active, not
+    settled) keeps its angle and its law's pose; the others follow the
+    lowest point (above RING_FOLLOW_SHARE) and the tilt. Standing flat the N
+    slots carry the ring's N arcs; tilted, the lowest slot the rim torus'
+    point contact; and the force is continuous in between. With N >= 3
+    equally spaced slots the ring's stiffness against tilting is the
+    continuous ring's (sum_k cos^2(phi_k) = N/2), where a lying side's two
+    ends carry three times a line's.
+
+    shape: :class:`msf_contact.shapes.Cylinder`; n_slots: the pair's slots."""
+
+    def __init__(self, shape: Cylinder, n_slots: int = 4):
+        if not isinstance(shape, Cylinder):
+            raise ValueError(f"a rim ring needs a msf_contact.shapes.Cylinder, not {type(shape).__name__}")
+        if int(n_slots) != n_slots or n_slots < 3:
+            raise ValueError(f"n_slots = {n_slots!r} must be a whole number >= 3 (a ring on fewer points tips)")
+        self.shape, self.n = shape, int(n_slots)
+        #: each slot's material angle about the axis, from the geom's x [rad] (n,)
+        self.angle = 2.0 * math.pi * np.arange(self.n) / self.n
+        self._base = 0.0  # the angle slot 0 is placed at
+        #: the slots' RimArcLaw; None: not built yet; False: the pair's law cannot carry a line
+        self.law = None
+        self.rim: RimPoints | None = None
+        self._free = np.ones(self.n, bool)
+
+    def build(self, template) -> None:
+        """The slots' laws from the pair's law ``template`` (ValueError if it cannot carry a line)."""
+        s = self.shape
+        self.law = [RimArcLaw(template, s.radius, s.edge_radius, self.n) for _ in range(self.n)]
+
+    def update(self, pos, rot, plane_pos, plane_normal, moving, busy) -> np.ndarray:
+        """The rim's slots at the cylinder's pose (``pos`` [m] (3,), ``rot``
+        (3, 3)) against the plane (``plane_pos`` [m] (3,), unit
+        ``plane_normal`` (3,)); ``moving`` (n,) bool: the slots in a contact
+        that has not settled (their laws keep their pose); ``busy`` (n,)
+        bool: the slots in contact or with a correction pending (while any
+        is, every slot keeps its material point). Returns (n,) bool: the
+        slots whose material point changed (their finite differences compare
+        two material points)."""
+        self._free = ~np.asarray(moving, dtype=bool)[:self.n]
+        probe = rim_points(self.shape, pos, rot, plane_pos, plane_normal, self.angle[:0])
+        follow = 2.0 * (self.shape.radius - self.shape.edge_radius) * math.sin(probe.tilt)
+        old = self.angle.copy()
+        if (not np.any(np.asarray(busy, dtype=bool)[:self.n]) and math.isfinite(probe.lowest_angle)
+                and follow > RING_FOLLOW_SHARE * self.shape.edge_radius):
+            self._base = probe.lowest_angle
+            self.angle = self._base + 2.0 * math.pi * np.arange(self.n) / self.n
+        self.rim = rim_points(self.shape, pos, rot, plane_pos, plane_normal, self.angle)
+        return self.angle != old
+
+    def points(self) -> np.ndarray:
+        """The slots' rim points [m] (n, 3)."""
+        return self.rim.lowest
+
+    def slots(self, nWn, refresh) -> list:
+        """Per slot (x [m], point [m] (3,) midway between the surfaces, normal
+        (3,)). Each slot not in a moving contact takes the current pose
+        (RimArcLaw.set_ring_pose) and its onset mass from ``nWn`` (n, n)
+        [1/kg] between the slots' points (:func:`_blended_mass_factors`:
+        standing flat, m/N each); ``refresh(law, before)`` after each change
+        (ContactManager.refresh_law: a settled slot keeps its elastic energy)."""
+        r = self.rim
+        per = [(float(r.x[s]), r.lowest[s] + 0.5 * float(r.x[s]) * r.normal, r.normal.copy()) for s in range(self.n)]
+        posed = [s for s in range(self.n) if self._free[s]]
+        before = {s: copy.copy(self.law[s]) for s in posed}
+        low = r.lowest_angle if math.isfinite(r.lowest_angle) else self._base
+        for s in posed:
+            self.law[s].set_ring_pose(r.tilt, float(self.angle[s]) - low)
+        _blended_mass_factors(self.law, posed, r.x, np.asarray(nWn, dtype=float))
+        for s in posed:
+            refresh(self.law[s], before[s])
+        return per
+
+
+class CylinderOnPlane(SideLine):
+    """A cylinder on a plane, as both adapters carry it (a narrow geom pair;
+    its N slots): lying (the axis within LINE_TILT_MAX of the plane) its
+    side's line law on slots 0 and 1 (:class:`SideLine`, mode "line"),
+    otherwise its rim ring on all N slots (:class:`RimRing`, mode "ring"):
+    standing on its end face or tilted on its rim. The mode changes between
+    contacts only (SideLine.update). Above LINE_TILT_MAX the side cannot
+    touch within the rim's small-strain range, so the side's end is its rim
+    point, which the ring's lowest slot carries (to the arc's O(phi0^2/6)).
+    A pair whose law cannot carry a line (not msf with kp_mode 'msf') stays
+    on the engine's points ("point"), warned once.
+
+    shape: :class:`msf_contact.shapes.Cylinder`; names: the pair's two body
+    (geom, link) names for the warnings; n_slots: the pair's slots."""
+
+    def __init__(self, shape: Cylinder, names: tuple, n_slots: int = 4):
+        super().__init__(shape, names)
+        if not isinstance(shape, Cylinder):
+            raise ValueError(f"CylinderOnPlane needs a msf_contact.shapes.Cylinder, not {type(shape).__name__}")
+        self.ring = RimRing(shape, n_slots)
+        #: (n,) bool: the ring's slots whose material point changed at the last update (RimRing.update)
+        self.moved = np.zeros(self.ring.n, bool)
+
+    def update(self, pos, rot, plane_pos, plane_normal, busy, template, moving=None) -> bool:
+        """SideLine.update, with the rim ring in place of the engine's points
+        (mode "ring"); ``moving`` (n,) bool as there. Returns True when the
+        mode changed (the slots start afresh)."""
+        was = self.mode
+        if was == "ring":
+            self.mode = "point"
+        super().update(pos, rot, plane_pos, plane_normal, busy, template, moving)
+        if self.mode == "point" and self.ring.law is None:
+            try:
+                self.ring.build(template)
+            except ValueError as exc:
+                self.ring.law = False
+                warnings.warn(f"pair ({self.names[0]!r}, {self.names[1]!r}): a cylinder on its end carries its rim "
+                              f"ring with the msf line law, but {exc}: the engine's points carry the contact with "
+                              "their point laws instead (standing flat: a stand-in, flagged)", RuntimeWarning,
+                              stacklevel=3)
+        self.moved = np.zeros(self.ring.n, bool)
+        if self.mode == "point" and self.ring.law:
+            self.mode = "ring"
+            self.moved = self.ring.update(pos, rot, plane_pos, plane_normal,
+                                          np.zeros(self.ring.n, bool) if moving is None else moving, busy)
+        return self.mode != was
+
+    def ring_slots(self, nWn, refresh) -> list:
+        """The N slots as the rim ring's (RimRing.slots)."""
+        return self.ring.slots(nWn, refresh)
+
+
 # ------------------------------------------------------------- box on plane ---
 #: A box's 8 corners as signs of its half-extents (3,) each, (8, 3).
 BOX_CORNERS = np.array([[i, j, k] for i in (-1, 1) for j in (-1, 1) for k in (-1, 1)], dtype=float)

@@ -13,7 +13,7 @@ import numpy as np
 from msf_contact.laws import ForceLaw, HertzLaw, HuntCrossleyLaw, KuwabaraKonoLaw, MSFLaw, SpringDashpotLaw
 
 from .. import _kernel as K
-from .._narrow import SideEndLaw
+from .._narrow import RimArcLaw, SideEndLaw
 from .state import (
     _P, F_RATIO_FLOOR, MAX_SEGMENTS, NY, ROOT_ITER, ROOT_TOL, SETTLE_AFTER_DURATIONS, SETTLED_FD_REL,
     SETTLED_NEWTON_MAX, SETTLED_SPEED_RATIO, SETTLED_VTOL, _Rows,
@@ -38,8 +38,10 @@ def kernel_law(law: ForceLaw):
     numpy path. An engines._narrow.SideEndLaw (a lying side's line law) is
     CODE_SIDE with the constants of its current pose (tilt, rise: set_pose;
     its adapter refreshes them every step, ContactManager.refresh_law): its
-    width and shear lengths as SideEndLaw's in engines._kernel.forces."""
-    if type(law) is SideEndLaw:
+    width and shear lengths as SideEndLaw's in engines._kernel.forces; a
+    RimArcLaw (a slot of a cylinder's rim ring) is CODE_SIDE with its ring
+    constants (LC_SRING set)."""
+    if type(law) is SideEndLaw or type(law) is RimArcLaw:
         code = K.CODE_SIDE
     else:
         base = next((c for c in _KERNEL_CODES if isinstance(law, c)), None)

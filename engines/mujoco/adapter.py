@@ -745,10 +745,14 @@ class MujocoAdapter(EngineAdapter):
         n_slots = max(slots[0], slots[1] if t2 != "plane" else 1)
         k = len(self._narrow_pairs)
         self._narrow_pairs.append((g1, g2, shapes[0], shapes[1], SlotMatcher(n_slots, float(m.geom_rbound[g1]))))
-        if t1 in ("capsule", "cylinder") and t2 == "plane":  # a side lying on the plane: one line contact
+        if t1 == "capsule" and t2 == "plane":  # a side lying on the plane: one line contact
             from engines._narrow import SideLine
 
             self._line[k] = SideLine(shapes[0], (p.body1, p.body2))
+        if t1 == "cylinder" and t2 == "plane":  # lying: its side's line; else its rim ring (CylinderOnPlane)
+            from engines._narrow import CylinderOnPlane
+
+            self._line[k] = CylinderOnPlane(shapes[0], (p.body1, p.body2), n_slots)
         if t1 == "box" and t2 == "plane":  # its rounded corners and edges (engines._narrow.BoxOnPlane)
             from engines._narrow import BoxOnPlane
 
@@ -1139,8 +1143,12 @@ class MujocoAdapter(EngineAdapter):
             if k in self._box:
                 out.append(self._box_slots(k, first, busy[first:first + match.n]))
                 continue
-            if k in self._line and self._line_mode(k, busy[first:first + match.n]) == "line":
+            mode = self._line_mode(k, busy[first:first + match.n]) if k in self._line else None
+            if mode == "line":
                 out.append(self._line_slots(k, match.n))
+                continue
+            if mode == "ring":  # a cylinder on its rim (engines._narrow.RimRing)
+                out.append(self._ring_slots(k, first))
                 continue
             slots = match.assign(local, x, busy[first:first + match.n])
             per = [None] * match.n
@@ -1225,6 +1233,24 @@ class MujocoAdapter(EngineAdapter):
         mujoco.mj_solveM(m, d, MJ, Jn)
         return st.slots(Jn @ MJ.T, n_slots, self.manager.refresh_law)
 
+    def _ring_slots(self, k: int, first: int) -> list:
+        """The slots of narrow geom pair k (its first pair index ``first``), a
+        cylinder on its rim, as its rim ring's
+        (engines._narrow.CylinderOnPlane.ring_slots), their onset masses from
+        MuJoCo's Jacobians and mass matrix; a slot placed at another rim
+        point restarts its a_ext (its last velocity was another point's)."""
+        ring = self._line[k].ring
+        self._have_last[first + np.flatnonzero(self._line[k].moved)] = False
+        m, d = self.model, self.data
+        g1, g2 = self._narrow_pairs[k][:2]
+        b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
+        ja, jb = np.zeros((3, m.nv)), np.zeros((3, m.nv))
+        Jn = np.stack([(self._jacobian(b1, q, ja) - self._jacobian(b2, q, jb)).T @ ring.rim.normal
+                       for q in ring.points()])
+        MJ = np.empty_like(Jn)
+        mujoco.mj_solveM(m, d, MJ, Jn)
+        return self._line[k].ring_slots(Jn @ MJ.T, self.manager.refresh_law)
+
     def _box_slots(self, k: int, first: int, busy) -> list:
         """The slots of narrow geom pair k, a box on a plane, as its corners
         (engines._narrow.BoxOnPlane.update and slots), their onset masses
@@ -1284,6 +1310,9 @@ class MujocoAdapter(EngineAdapter):
         line = self._line.get(p.narrow)
         if line is not None and line.mode == "line":
             self.manager.set_law(p.index, line.law[p.slot])
+            return
+        if line is not None and line.mode == "ring":  # a slot of a cylinder's rim ring (RimRing)
+            self.manager.set_law(p.index, line.ring.law[p.slot])
             return
         law = contact_law((spec.body1, spec.body2), spec.law, self.laws,
                           s1, (d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3)),
