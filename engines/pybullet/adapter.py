@@ -621,7 +621,7 @@ class PybulletAdapter(EngineAdapter):
 
     def _add_narrow(self, i, p: PairSpec, b1, b2, s1: _Shape, s2: _Shape) -> int:
         """Set pair i up for engines.pybullet.narrow; return its number of slots."""
-        from engines._narrow import BoxOnPlane, SideLine, SlotMatcher, default_mesh_slots
+        from engines._narrow import BoxOnPlane, CylinderOnPlane, SideLine, SlotMatcher, default_mesh_slots
         from msf_contact.shapes import Box, Capsule, Cylinder
 
         if s1.kind == "plane":
@@ -637,8 +637,10 @@ class PybulletAdapter(EngineAdapter):
                 for b, s in ((b1, s1), (b2, s2))]
         n = _narrow.slots_of(s1.kind, s2.kind, tuple(mesh))
         line = None
-        if s2.kind == "plane" and isinstance(geoms[0], (Capsule, Cylinder)):  # a side lying on it: one line
+        if s2.kind == "plane" and isinstance(geoms[0], Capsule):  # a side lying on it: one line
             line = SideLine(geoms[0], (self._body_name(b1), self._body_name(b2)))
+        if s2.kind == "plane" and isinstance(geoms[0], Cylinder):  # lying: its side's line; else its rim ring
+            line = CylinderOnPlane(geoms[0], (self._body_name(b1), self._body_name(b2)), n)
         box = None
         if isinstance(geoms[0], Box) and (s2.kind == "plane" or (s2.kind == "box" and self._fixed(b2))):
             # its rounded corners and edges on the plane, or on a fixed box's face (plane.urdf is a box)
@@ -1304,6 +1306,14 @@ class PybulletAdapter(EngineAdapter):
         if np_.line.update(c1, R1, c2, normal, required[i0:i0 + n], self.pairs[i0].law, moving):
             np_.matcher.anchor[:] = np.nan
             self._have_last[i0:i0 + n] = False
+        if np_.line.mode == "ring":  # a cylinder on its rim (engines._narrow.RimRing)
+            ring = np_.line.ring
+            if not np.all(_narrow.on_face(np_.shape2, c2, R2, ring.points())):  # past a floor's edge: the points
+                return False
+            self._have_last[i0 + np.flatnonzero(np_.line.moved)] = False
+            nWn = self._normal_coupling(i0, poses, ring.points(), ring.rim.normal)
+            self._narrow_found[i0:i0 + n] = np_.line.ring_slots(nWn, self.manager.refresh_law)
+            return True
         if np_.line.mode != "line":
             return False
         ends = np_.line.ends
@@ -1382,6 +1392,9 @@ class PybulletAdapter(EngineAdapter):
             return
         if np_.line is not None and np_.line.mode == "line":  # its ends' share of the line law
             self.manager.set_law(i, np_.line.law[slot])
+            return
+        if np_.line is not None and np_.line.mode == "ring":  # a slot of a cylinder's rim ring
+            self.manager.set_law(i, np_.line.ring.law[slot])
             return
         pose1 = self._world_shape(np_.shape1, poses[0])
         pose2 = self._world_shape(np_.shape2, poses[1])
