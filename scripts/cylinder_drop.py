@@ -3,6 +3,7 @@
 
     .venv/bin/python scripts/cylinder_drop.py mujoco [tilt_deg] [steps]
     .venv/bin/python scripts/cylinder_drop.py pybullet [tilt_deg] [steps]
+    .venv/bin/python scripts/cylinder_drop.py mujoco|pybullet sweep
 
 A puck or a can: radius 50 mm, half-height 22.5 mm, 0.1 kg, its axis
 tilted by ``tilt_deg`` about the world x axis, its centre 0.1 m above the
@@ -21,8 +22,10 @@ flagged and how many carry the stand-in note (engines._narrow.contact_law),
 the island energy gains flagged, and at the end the four slots' approaches
 (the manager's) against the static overlap of the ring law (:func:`static_ring`).
 
-``run(engine, ...)`` is what tests/test_cylinder_on_plane.py calls with
-fewer steps or a start just above the plane (``gap``).
+``sweep``: the same cylinder at 1 m/s tilted 0-5 deg (:func:`sweep`), the
+largest record's peak force at each tilt. ``run(engine, ...)`` and
+``sweep`` are what tests/test_cylinder_on_plane.py calls with fewer steps
+or a start just above the plane (``gap``).
 """
 
 from __future__ import annotations
@@ -196,8 +199,27 @@ def _pybullet(steps, z0, v0, tilt_deg) -> dict:
         pb.disconnect(c)
 
 
+#: The tilts of :func:`sweep` [deg] (tests/test_cylinder_on_plane.py's).
+SWEEP_TILTS = (0.0, 0.001, 0.01, 0.1, 0.5, 1.0, 2.0, 5.0)
+
+
+def sweep(engine: str, steps: int = 40) -> list:
+    """The user's cylinder at 1 m/s, 10 um above the plane, at each of
+    SWEEP_TILTS: (tilt [deg], largest record's F_max [N], E_out/E_in, island
+    gains flagged) each, over ``steps`` steps."""
+    rows = []
+    for tilt in SWEEP_TILTS:
+        out = run(engine, tilt, steps, gap=1e-5, height=None, speed=1.0)
+        rows.append((tilt, out["peak_N"], out["rebound"], out["island_gains"]))
+    return rows
+
+
 def main(argv) -> None:
     engine = argv[1] if len(argv) > 1 else "mujoco"
+    if len(argv) > 2 and argv[2] == "sweep":
+        for tilt, peak, reb, gains in sweep(engine):
+            print(f"tilt {tilt:g} deg: peak {peak:.4f} N, E_out/E_in {reb:.4f}, island gains {gains}")
+        return
     tilt = float(argv[2]) if len(argv) > 2 else 0.0
     steps = int(argv[3]) if len(argv) > 3 else 1500
     for key, val in run(engine, tilt, steps).items():
