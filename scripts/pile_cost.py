@@ -1,6 +1,6 @@
 """Where a step of the pile goes (issue 10: the 200-sphere pile's cost).
 
-    .venv/bin/python scripts/pile_cost.py --engine mujoco --n 200 --side 6 --skip 250 --steps 20
+    .venv/bin/python scripts/pile_cost.py --engine mujoco --n 200 --side 6 --skip 250 --steps 20 --pour low
 
 Runs ``scripts/pile.py``'s scene for ``--skip`` steps, then ``--steps`` more
 under cProfile, and prints one JSON line: the CPU time per profiled step
@@ -42,10 +42,11 @@ from engines._contacts import island_compiled as IC  # noqa: E402
 from engines._contacts.state import SUBSTEPS_PER_CONTACT  # noqa: E402
 
 
-def measure(engine: str, n: int, side: int, skip: int, steps: int, dt: float = 1e-3, top: int = 8) -> dict:
-    """The module docstring's report for ``steps`` steps after ``skip``."""
+def measure(engine: str, n: int, side: int, skip: int, steps: int, dt: float = 1e-3, top: int = 8,
+            pour: str = "grid") -> dict:
+    """The module docstring's report for ``steps`` steps after ``skip`` of the pour ``pour`` (pile.POURS)."""
     builder = pile.build_mujoco if engine == "mujoco" else pile.build_pybullet
-    ad, ctx, _speeds = builder(n, side, dt)
+    ad, ctx, _speeds = builder(n, side, dt, pour=pour)
     mgr = ad.manager
     per_step: list[dict] = []
     last: dict = {}
@@ -92,7 +93,8 @@ def measure(engine: str, n: int, side: int, skip: int, steps: int, dt: float = 1
     kern = sum(v[2] for k, v in st.stats.items() if k[2] == "advance_islands")
     own = sorted(((v[2], f"{Path(k[0]).name}:{k[1]}({k[2]})") for k, v in st.stats.items()), reverse=True)[:top]
     mean = {k: float(np.mean([s[k] for s in per_step])) for k in per_step[0]}
-    out = {"engine": engine, "n": n, "side": side, "pairs": len(mgr.pairs), "after_step": skip, "steps": steps,
+    out = {"engine": engine, "n": n, "side": side, "pour": pour, "pairs": len(mgr.pairs), "after_step": skip,
+           "steps": steps,
            "cpu_s_per_step": cpu, "share_in_island_kernel": kern / total if total else 0.0,
            "top_own_time_s": [(round(t / steps, 6), name) for t, name in own], "mean_per_step": mean}
     if rs is not None and rs[0].size:
@@ -147,11 +149,12 @@ def main(argv=None) -> None:
     ap.add_argument("--side", type=int, default=6, help="spheres a row in the box")
     ap.add_argument("--skip", type=int, default=250, help="steps run before the profiled ones")
     ap.add_argument("--steps", type=int, default=20, help="steps profiled")
+    ap.add_argument("--pour", choices=pile.POURS, default="grid", help="how the spheres start (pile.POURS)")
     a = ap.parse_args(argv)
     for name, v, lo in (("n", a.n, 1), ("side", a.side, 1), ("skip", a.skip, 0), ("steps", a.steps, 1)):
         if v < lo:
             raise ValueError(f"{name} = {v!r} must be >= {lo}")
-    print(json.dumps(measure(a.engine, a.n, a.side, a.skip, a.steps)))
+    print(json.dumps(measure(a.engine, a.n, a.side, a.skip, a.steps, pour=a.pour)))
 
 
 if __name__ == "__main__":
