@@ -71,7 +71,7 @@ def law():
     return make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(0.02))
 
 
-def static_face(mgr, box, slots, com, mass: float = MASS, g: float = G) -> np.ndarray:
+def static_face(mgr, box, slots, com, mass: float = MASS, g: float = G, first: int = 0) -> np.ndarray:
     """The approaches [m] (4,) of the corners ``slots`` of a rigid box resting
     on them: x_i = x_i0 + z + a u_i + b v_i (x_i0 the engine's approaches, (u,
     v) the corners' lowest points in the plane about the centre of mass
@@ -80,13 +80,14 @@ def static_face(mgr, box, slots, com, mass: float = MASS, g: float = G) -> np.nd
     centre of mass; tangential forces at rest sum to zero and act in the
     plane, so they add no moment about its axes), F_i the elastic force of
     each contact's law and onset constants (msf_contact.statics.elastic_force:
-    the law at x' = 0, (37))."""
+    the law at x' = 0, (37)). ``first``: the manager's pair index of the
+    box's slot 0 (slots are the manager's indices)."""
     from msf_contact.curvature import tangent_basis
     from msf_contact.statics import elastic_force
 
     c = box.corners
     t1, t2 = tangent_basis(c.normal)
-    k = box.corner[slots]
+    k = box.corner[np.asarray(slots) - first]
     x0 = c.x[k]
     uv = np.stack([(c.lowest[k] - com) @ t1, (c.lowest[k] - com) @ t2], axis=1)
     laws = [mgr._groups[mgr._group_of[p]] for p in slots]

@@ -758,6 +758,11 @@ class MujocoAdapter(EngineAdapter):
 
             self._box[k] = BoxOnPlane(shapes[0], (p.body1, p.body2), n_slots)
             self._box[k].check(p.law)
+        if t1 == "box" and t2 == "box":  # a box on a box: the lower one's face (engines._narrow.BoxOnBox)
+            from engines._narrow import BoxOnBox
+
+            self._box[k] = BoxOnBox(shapes[0], shapes[1], (p.body1, p.body2), n_slots)
+            self._box[k].check(p.law)
         return [_Pair(first + s, g1, g2, b1, b2, "narrow", float(m.geom_rbound[g1]), fixed1, fixed2, k, s)
                 for s in range(n_slots)]
 
@@ -1253,17 +1258,30 @@ class MujocoAdapter(EngineAdapter):
 
     def _box_slots(self, k: int, first: int, busy) -> list:
         """The slots of narrow geom pair k, a box on a plane, as its corners
-        (engines._narrow.BoxOnPlane.update and slots), their onset masses
-        from MuJoCo's Jacobians and mass matrix."""
+        (engines._narrow.BoxOnPlane.update and slots; a box on a box:
+        BoxOnBox, the other box's face at its current pose), their onset
+        masses from MuJoCo's Jacobians and mass matrix."""
+        from engines._narrow import BoxOnBox
+
         bx = self._box[k]
         m, d, mgr = self.model, self.data, self.manager
         g1, g2 = self._narrow_pairs[k][:2]
         moving = mgr.active[first:first + bx.n] & ~mgr.settled[first:first + bx.n]
-        bx.update(d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3), d.geom_xpos[g2],
-                  d.geom_xmat[g2].reshape(3, 3)[:, 2], busy, self.pairs[first].law, self.laws)
+        if isinstance(bx, BoxOnBox):  # the other box's face at its current pose
+            up = -np.asarray(m.opt.gravity, dtype=float)
+            bx.update(d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3), d.geom_xpos[g2], d.geom_xmat[g2].reshape(3, 3),
+                      busy, self.pairs[first].law, self.laws, up)
+            normal = bx.normal
+            if bx.note is not None:  # edges crossing edges: the contacts in progress flagged
+                for s in np.flatnonzero(mgr.active[first:first + bx.n]):
+                    mgr.flag_contact(first + int(s), bx.note, float(d.time))
+        else:
+            bx.update(d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3), d.geom_xpos[g2],
+                      d.geom_xmat[g2].reshape(3, 3)[:, 2], busy, self.pairs[first].law, self.laws)
+            normal = bx.corners.normal
         b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
         ja, jb = np.zeros((3, m.nv)), np.zeros((3, m.nv))
-        Jn = np.stack([(self._jacobian(b1, q, ja) - self._jacobian(b2, q, jb)).T @ bx.corners.normal
+        Jn = np.stack([(self._jacobian(b1, q, ja) - self._jacobian(b2, q, jb)).T @ normal
                        for q in bx.points()])
         MJ = np.empty_like(Jn)
         mujoco.mj_solveM(m, d, MJ, Jn)

@@ -621,7 +621,7 @@ class PybulletAdapter(EngineAdapter):
 
     def _add_narrow(self, i, p: PairSpec, b1, b2, s1: _Shape, s2: _Shape) -> int:
         """Set pair i up for engines.pybullet.narrow; return its number of slots."""
-        from engines._narrow import BoxOnPlane, CylinderOnPlane, SideLine, SlotMatcher, default_mesh_slots
+        from engines._narrow import BoxOnBox, BoxOnPlane, CylinderOnPlane, SideLine, SlotMatcher, default_mesh_slots
         from msf_contact.shapes import Box, Capsule, Cylinder
 
         if s1.kind == "plane":
@@ -645,6 +645,10 @@ class PybulletAdapter(EngineAdapter):
         if isinstance(geoms[0], Box) and (s2.kind == "plane" or (s2.kind == "box" and self._fixed(b2))):
             # its rounded corners and edges on the plane, or on a fixed box's face (plane.urdf is a box)
             box = BoxOnPlane(geoms[0], (self._body_name(b1), self._body_name(b2)), n)
+            box.check(p.law)
+        elif isinstance(geoms[0], Box) and isinstance(geoms[1], Box) and s2.kind == "box":
+            # a box on a free box: the lower box's face at its current pose (engines._narrow.BoxOnBox)
+            box = BoxOnBox(geoms[0], geoms[1], (self._body_name(b1), self._body_name(b2)), n)
             box.check(p.law)
         self._narrow.append(_narrow.NarrowPair(len(self._bodies), b1, b2, s1, s2, geoms[0], geoms[1],
                                                SlotMatcher(n, s1.extent()), _narrow.pair_method(s1.kind, s2.kind, n),
@@ -1325,13 +1329,27 @@ class PybulletAdapter(EngineAdapter):
 
     def _box_points(self, np_: _narrow.NarrowPair, poses, required) -> None:
         """A box on a plane or a fixed box's face (engines._narrow.BoxOnPlane,
-        as the MuJoCo adapter): its slots are its lowest rounded corners, put
+        as the MuJoCo adapter), or on a free box's face (BoxOnBox, at both
+        boxes' poses): its slots are its lowest rounded corners, put
         into ``_narrow_found``; a slot given another corner restarts its a_ext."""
+        from engines._narrow import BoxOnBox
         from engines._narrow import face_toward as _face_toward
 
         i0, n = np_.first, np_.n
         c1, R1 = self._world_shape(np_.shape1, poses[0])
         c2, R2 = self._world_shape(np_.shape2, poses[1])
+        mgr = self.manager
+        if isinstance(np_.box, BoxOnBox):  # a box on a free box: its face at its current pose
+            moving = mgr.active[i0:i0 + n] & ~mgr.settled[i0:i0 + n]
+            up = -np.asarray(self._gravity(), dtype=float)
+            changed = np_.box.update(c1, R1, c2, R2, required[i0:i0 + n], self.pairs[i0].law, self.laws, up)
+            self._have_last[i0 + np.flatnonzero(changed)] = False
+            if np_.box.note is not None:  # edges crossing edges: the contacts in progress flagged
+                for s in np.flatnonzero(mgr.active[i0:i0 + n]):
+                    mgr.flag_contact(i0 + int(s), np_.box.note, self.time)
+            nWn = self._normal_coupling(i0, poses, np_.box.points(), np_.box.normal)
+            self._narrow_found[i0:i0 + n] = np_.box.slots(nWn, moving, mgr.refresh_law)
+            return
         if np_.shape2.kind == "plane":
             normal = R2 @ (np.asarray(np_.shape2.size, float) / np.linalg.norm(np_.shape2.size))
         else:  # a fixed box: its face toward the box
