@@ -1,6 +1,6 @@
 """Boxes on boxes as a user stacks them (issue 13), in MuJoCo or pybullet:
 
-    .venv/bin/python scripts/box_stack.py mujoco|pybullet drop|land|rest|stack3 [steps]
+    .venv/bin/python scripts/box_stack.py mujoco|pybullet drop|land|edge|rest|stack3 [steps]
 
 Natural rubber on steel, plain ``PairSpec``s with
 ``make_law("msf", ..., Curvature.sphere_on_plane(0.02))`` on every box-floor
@@ -20,6 +20,9 @@ lower box's face as the plane of the upper box's corners).
 - ``land``: the MuJoCo drop's upper box (Euler (90, 7, 3) deg, 0.1 kg)
   1 mm above a resting box at its speed from 0.2 m (1.8 m/s), both
   engines (tests/test_box_stack.py: the landing without the fall).
+- ``edge``: the drop's upper box from 0.2 m with its centre 30 mm off the
+  lower box's (over its edge): it lands overhanging, tips off, and its
+  edges may cross the lower box's (BoxOnBox flags that).
 - ``rest``: a box set 0.2 mm above another (its lowest sharp corner 0.2 mm
   above the lower box's top face; the lower box 0.2 mm above the floor),
   tilted (1, 0.5, 0) deg, from rest: its four corners come to rest on the lower box's face;
@@ -76,6 +79,9 @@ def _scene(scene: str) -> list:
     if scene == "drop":
         return [("A", (0.0, 0.0, 0.06), _quat_wxyz((0.0, 90.0, 0.0)), 0.2, 0.0),
                 ("B", (0.004, 0.003, 0.2), _quat_wxyz((90.0, 7.0, 3.0)), 0.1, 0.0)]
+    if scene == "edge":  # the drop's upper box over the lower box's edge (its centre 30 mm off A's)
+        return [("A", (0.0, 0.0, HALF), _quat_wxyz((0.0, 0.0, 0.0)), MASS, 0.0),
+                ("B", (0.03, 0.003, 0.2), _quat_wxyz((90.0, 7.0, 3.0)), MASS, 0.0)]
     if scene == "land":  # the drop's upper box LAND_GAP above the lower one, at its speed from 0.2 m
         q = _quat_wxyz(LAND_EULER_DEG)
         R = np.zeros(9)
