@@ -1603,6 +1603,36 @@ def box_box_axes(h1, c1, R1, h2, c2, R2) -> dict:
     return {"face1": f1, "normal1": n1, "face2": f2, "normal2": n2, "edge": best, "edge_axes": axes}
 
 
+def segment_closest(p0, p1, q0, q1) -> tuple[np.ndarray, np.ndarray]:
+    """The closest points [m] (3,) each of the segments p0-p1 and q0-q1
+    (Ericson, Real-Time Collision Detection, 5.1.9: the clamped parameters
+    of the two lines' closest points)."""
+    d1, d2, r = p1 - p0, q1 - q0, p0 - q0
+    a, e, f = float(d1 @ d1), float(d2 @ d2), float(d2 @ r)
+    c, b = float(d1 @ r), float(d1 @ d2)
+    den = a * e - b * b
+    s = min(max((b * f - c * e) / den, 0.0), 1.0) if den > 1e-30 * a * e else 0.0
+    t = (b * s + f) / e
+    if t < 0.0:
+        t, s = 0.0, min(max(-c / a, 0.0), 1.0)
+    elif t > 1.0:
+        t, s = 1.0, min(max((b - c) / a, 0.0), 1.0)
+    return p0 + s * d1, q0 + t * d2
+
+
+def box_edge(shape: Box, pos, rot, axis: int, signs) -> tuple[np.ndarray, np.ndarray]:
+    """The ends [m] (3,) each of the rounded box's edge along ``axis`` at
+    the signs (3,) of the other two coordinates: the segment of the inner
+    box (half-extents h - rho) that the edge's cylinder of radius rho is
+    around (:func:`box_corners`' Minkowski sum)."""
+    inner = np.asarray(shape.half_extents, dtype=float) - shape.edge_radius
+    rot = np.asarray(rot, dtype=float).reshape(3, 3)
+    a, b = np.array(signs, dtype=float) * inner, np.array(signs, dtype=float) * inner
+    a[axis], b[axis] = -inner[axis], inner[axis]
+    pos = np.asarray(pos, dtype=float)
+    return pos + rot @ a, pos + rot @ b
+
+
 class BoxOnBox:
     """A box with rounded edges on another free (or moving) box, as both
     adapters carry it (issue 13: stacking): the lower box's face is the
@@ -1619,17 +1649,14 @@ class BoxOnBox:
     approach against one face (as BoxOnPlane's poses, :meth:`SideLine.slots`),
     and re-chosen when all are free.
 
-    Two approximations, stated: the face is taken as an unbounded plane (as
-    :func:`face_toward` takes a fixed box's face): a corner of the upper box
-    past the lower box's face (a box turned on another, overhanging) is
-    carried as if the face went on; and edges crossing edges (the best
-    separating axis a cross product of two edges, by more than the tie) are
-    carried by the face mode too, the slots' contacts then flagged
-    (:attr:`note`, put in their records' outside_validity by the adapters:
-    ContactManager.flag_contact) and a
-    RuntimeWarning names both boxes once per pair (the crossing of two
-    rounded edges, two cylinders of the edge radius at an angle, has no
-    slot here).
+    Edges crossing edges (the best separating axis a cross product of two
+    edges, by more than the tie) are one contact, slot 0, the crossing of
+    the two rounded edges (:meth:`_crossing`), held the same way. Stated
+    approximations: the face is taken as an unbounded plane (as
+    :func:`face_toward` takes a fixed box's face): a corner of the upper
+    box past the lower box's face (a box turned on another, overhanging) is
+    carried as if the face went on; and while one choice's contact lasts
+    the other features are not looked at.
 
     shape1, shape2: :class:`msf_contact.shapes.Box` of body 1 and body 2;
     names: their names; n_slots: the corners managed (4: a face)."""
@@ -1646,11 +1673,15 @@ class BoxOnBox:
         self.which = 1
         #: the face (its box's axis 0-2, sign +-1) the corners rest on, chosen when all slots are free
         self.face = (2, 1.0)
-        #: whether the last choice found edges crossing edges (flagged, class docstring)
+        #: whether the last choice found edges crossing edges (slot 0 their crossing, :meth:`_crossing`)
         self.crossing = False
         #: the contact normal (from body 2 toward body 1) [-] (3,) at the last update
         self.normal = np.array([0.0, 0.0, 1.0])
-        self._warned = False
+        #: while edges cross edges: (box 1's edge axis, its signs (3,), box 2's edge axis, its signs (3,))
+        self.edges = None
+        #: the crossing's (x [m], point [m] (3,), normal (3,)) at the last update, and its law
+        self.cross = None
+        self.cross_law = None
 
     @property
     def box(self) -> BoxOnPlane:
@@ -1667,17 +1698,10 @@ class BoxOnBox:
 
     @property
     def law(self) -> list:
-        """Each slot's law (BoxOnPlane.law of the corners in use)."""
+        """Each slot's law (BoxOnPlane.law of the corners in use; crossing edges: slot 0's the crossing's)."""
+        if self.crossing:
+            return [self.cross_law] + [None] * (self.n - 1)
         return self.box.law
-
-    @property
-    def note(self) -> str | None:
-        """The outside_validity note of the slots' contacts while edges cross edges (None: not crossing)."""
-        if not self.crossing:
-            return None
-        return (f"boxes {self.names[0]!r} and {self.names[1]!r}: edges crossing edges carried as the corners of one "
-                "box on the other's face taken as an unbounded plane (engines._narrow.BoxOnBox): the crossing of "
-                "two rounded edges has no law here")
 
     def check(self, template) -> None:
         """BoxOnPlane.check of both boxes (a law that cannot carry a line: the corners' spheres)."""
@@ -1702,13 +1726,17 @@ class BoxOnBox:
         k = pick % 3
         self.face = (k, float(np.sign(normals[pick] @ rot[:, k])))
         self.crossing = bool(ax["edge"] > best + tie)
-        if self.crossing and not self._warned:
-            self._warned = True
-            warnings.warn(f"boxes ({self.names[0]!r}, {self.names[1]!r}): edges crossing edges (separating axis "
-                          f"of edges {ax['edge_axes']}, {ax['edge']:.4g} m against the faces' {best:.4g} m) are "
-                          "carried by one box's corners on the other's face taken as an unbounded plane, the "
-                          "records flagged (outside_validity): the crossing of two rounded edges has no law here "
-                          "(warned once per pair)", RuntimeWarning, stacklevel=3)
+        self.edges = None
+        if self.crossing:  # the two edges nearest each other along the edges' axis (from box 2 toward box 1)
+            i, j = ax["edge_axes"]
+            R1, R2 = np.asarray(rot1, float).reshape(3, 3), np.asarray(rot2, float).reshape(3, 3)
+            a = np.cross(R1[:, i], R2[:, j])
+            a /= np.linalg.norm(a)
+            if float((np.asarray(pos1, float) - np.asarray(pos2, float)) @ a) < 0.0:
+                a = -a
+            s1 = np.where(R1.T @ a > 0.0, -1.0, 1.0)  # box 1's edge on its side toward box 2
+            s2 = np.where(R2.T @ a > 0.0, 1.0, -1.0)  # box 2's toward box 1
+            self.edges = (int(i), s1, int(j), s2)
 
     def _frame(self, pos1, rot1, pos2, rot2) -> tuple:
         """(corners' box centre [m] (3,), its rotation (3, 3), a point of the
@@ -1725,33 +1753,71 @@ class BoxOnBox:
         """:func:`box_corners` of the corners' box against the chosen face at these poses (no slot changes)."""
         return box_corners(self.shapes[self.which], *self._frame(pos1, rot1, pos2, rot2))
 
-    def update(self, pos1, rot1, pos2, rot2, busy, template, bank: "LawBank", up=None) -> np.ndarray:
+    def update(self, pos1, rot1, pos2, rot2, busy, template, bank: "LawBank", up=None,
+               t: float = 0.0) -> np.ndarray:
         """The slots at both boxes' poses (``pos`` [m] (3,), ``rot`` (3, 3)
-        each): the corners' box and face re-chosen when no slot is busy
-        (``busy`` (n,) bool), then BoxOnPlane.update of those corners
-        against that face at its current pose. Returns (n,) bool: the slots
-        whose corner changed (all of them when the choice changed)."""
+        each): the corners' box and face (or the crossing edges) re-chosen
+        when no slot is busy (``busy`` (n,) bool), then BoxOnPlane.update of
+        those corners against that face at its current pose (or the
+        crossing, :meth:`_crossing`; t [s] the engine time for its
+        messages). Returns (n,) bool: the slots whose corner changed (all of
+        them when the choice changed)."""
         busy = np.asarray(busy, dtype=bool)[:self.n]
-        before = (self.which, self.face)
+        before = (self.which, self.face, self.crossing)
         if not np.any(busy):
             self.choose(pos1, rot1, pos2, rot2, up)
+        if self.crossing:
+            if before[2] is not True:
+                self.on[1].corner[:] = -1
+                self.on[2].corner[:] = -1
+            self._crossing(pos1, rot1, pos2, rot2, busy, template, bank, t)
+            return np.ones(self.n, bool) if before[2] is not True else np.zeros(self.n, bool)
         cpos, crot, fpoint, n_face = self._frame(pos1, rot1, pos2, rot2)
         changed = self.box.update(cpos, crot, fpoint, n_face, busy, template, bank)
         self.normal = n_face if self.which == 1 else -n_face
-        if (self.which, self.face) != before:
+        if (self.which, self.face, self.crossing) != before:
             other = self.on[3 - self.which]
             other.corner[:] = -1
             changed = np.ones(self.n, bool)
         return changed
 
+    def _crossing(self, pos1, rot1, pos2, rot2, busy, template, bank, t) -> None:
+        """Slot 0 as the crossing of the two rounded edges (:attr:`edges`,
+        each a cylinder of its box's edge radius about its inner edge,
+        :func:`box_edge`): x = rho1 + rho2 - the edges' distance
+        (:func:`segment_closest`), the normal along their common
+        perpendicular, the point midway between the surfaces; before its
+        onset (slot 0 free) the law of the curvature of both surfaces there
+        (:func:`contact_law`: two cylinders of rho at the edges' angle,
+        msf_contact's Hertz combination, (13)-(24) with the relative angle;
+        edges near parallel, a line, carried flagged by the stand-in)."""
+        i, s1, j, s2 = self.edges
+        sh1, sh2 = self.shapes[1], self.shapes[2]
+        p1, p2 = segment_closest(*box_edge(sh1, pos1, rot1, i, s1), *box_edge(sh2, pos2, rot2, j, s2))
+        gap = p1 - p2
+        dist = float(np.linalg.norm(gap))
+        n = gap / dist if dist > 0.0 else self.normal.copy()
+        x = sh1.edge_radius + sh2.edge_radius - dist
+        point = 0.5 * ((p1 - sh1.edge_radius * n) + (p2 + sh2.edge_radius * n))
+        self.normal, self.cross = n, (float(x), point, n.copy())
+        if not busy[0] or self.cross_law is None:
+            self.cross_law = contact_law(self.names, template, bank, sh1, (np.asarray(pos1, float),
+                                         np.asarray(rot1, float).reshape(3, 3)), sh2,
+                                         (np.asarray(pos2, float), np.asarray(rot2, float).reshape(3, 3)),
+                                         point, n, t, max(float(x), 0.0))
+
     def points(self) -> np.ndarray:
-        """BoxOnPlane.points of the corners in use [m] (n, 3)."""
+        """BoxOnPlane.points of the corners in use [m] (n, 3) (crossing edges: the crossing's point)."""
+        if self.crossing:
+            return np.tile(self.cross[1], (self.n, 1))
         return self.box.points()
 
     def slots(self, nWn, moving, refresh) -> list:
         """BoxOnPlane.slots (nWn (n, n) [1/kg] along :attr:`normal`), each
         slot's normal from body 2 toward body 1 (body 2's corners on body
         1's face: the face's outward normal reversed)."""
+        if self.crossing:  # slot 0 the crossing, a point law: no pose
+            return [(self.cross[0], self.cross[1].copy(), self.cross[2].copy())] + [None] * (self.n - 1)
         per = self.box.slots(nWn, moving, refresh)
         if self.which == 2:
             per = [None if q is None else (q[0], q[1], -q[2]) for q in per]

@@ -1,6 +1,6 @@
 """Boxes on boxes as a user stacks them (issue 13), in MuJoCo or pybullet:
 
-    .venv/bin/python scripts/box_stack.py mujoco|pybullet drop|land|edge|rest|stack3 [steps]
+    .venv/bin/python scripts/box_stack.py mujoco|pybullet drop|land|edge|cross|rest|stack3 [steps]
 
 Natural rubber on steel, plain ``PairSpec``s with
 ``make_law("msf", ..., Curvature.sphere_on_plane(0.02))`` on every box-floor
@@ -22,7 +22,7 @@ lower box's face as the plane of the upper box's corners).
   engines (tests/test_box_stack.py: the landing without the fall).
 - ``edge``: the drop's upper box from 0.2 m with its centre 30 mm off the
   lower box's (over its edge): it lands overhanging, tips off, and its
-  edges may cross the lower box's (BoxOnBox flags that).
+  edges may cross the lower box's (BoxOnBox's crossing).
 - ``rest``: a box set 0.2 mm above another (its lowest sharp corner 0.2 mm
   above the lower box's top face; the lower box 0.2 mm above the floor),
   tilted (1, 0.5, 0) deg, from rest: its four corners come to rest on the lower box's face;
@@ -58,6 +58,8 @@ HALF, G, DT = 0.025, 9.81, 1e-3
 MASS = 0.1
 #: Start gap between the boxes [m] and the tilt [deg] of the rest scenes (as box_drop's rest test).
 GAP, TILT_DEG = 2e-4, (1.0, 0.5, 0.0)
+#: The crossing scene: the gap between the sharp edges [m] and B's speed toward A [m/s] (no gravity).
+CROSS_GAP, CROSS_SPEED = 5e-4, 0.5
 #: The landing scene: the upper box's lowest sharp corner this far above the lower box [m], its Euler
 #: angles [deg] (the drop's, MuJoCo's "xyz").
 LAND_GAP, LAND_EULER_DEG = 1e-3, (90.0, 7.0, 3.0)
@@ -79,6 +81,10 @@ def _scene(scene: str) -> list:
     if scene == "drop":
         return [("A", (0.0, 0.0, 0.06), _quat_wxyz((0.0, 90.0, 0.0)), 0.2, 0.0),
                 ("B", (0.004, 0.003, 0.2), _quat_wxyz((90.0, 7.0, 3.0)), 0.1, 0.0)]
+    if scene == "cross":  # no gravity: B (45 deg about x) closing on A (45 deg about y) edge across edge
+        r = 2 * math.sqrt(2) * HALF  # the sharp edges touch at this centres' distance
+        return [("A", (0.0, 0.0, 0.1), _quat_wxyz((0.0, 45.0, 0.0)), MASS, 0.0),
+                ("B", (0.0, 0.0, 0.1 + r + CROSS_GAP), _quat_wxyz((45.0, 0.0, 0.0)), MASS, CROSS_SPEED)]
     if scene == "edge":  # the drop's upper box over the lower box's edge (its centre 30 mm off A's)
         return [("A", (0.0, 0.0, HALF), _quat_wxyz((0.0, 0.0, 0.0)), MASS, 0.0),
                 ("B", (0.03, 0.003, 0.2), _quat_wxyz((90.0, 7.0, 3.0)), MASS, 0.0)]
@@ -126,6 +132,10 @@ def _finish(out: dict, ad, boxes: list, masses: list, coms: list, poses: list) -
     recs = ad.records
     out.update(records=len(recs), flagged=sum(1 for r in recs if r.outside_validity),
                island_gains=len(mgr.island_energy_gains))
+    box_pairs = set()
+    for first, bb in boxes:
+        box_pairs.update(range(first, first + bb.n))
+    out["box_records"] = [r for r in recs if r.inputs.get("pair") in box_pairs]  # the box-box pairs' records
     out["interfaces"] = []
     for level, (first, bb) in enumerate(boxes):
         slots = first + np.arange(bb.n)
@@ -158,7 +168,8 @@ def _mujoco(scene: str, steps: int) -> dict:
         f'<body name="{n}" pos="{" ".join(repr(float(c)) for c in p)}" quat="{" ".join(repr(float(c)) for c in q)}">'
         f'<freejoint/><geom name="{n}" type="box" size="{HALF} {HALF} {HALF}" mass="{m}"/></body>'
         for n, p, q, m, _ in spec)
-    xml = (f'<mujoco><option timestep="{DT}" integrator="Euler"/><worldbody>'
+    grav = "0 0 0" if scene == "cross" else f"0 0 {-G}"
+    xml = (f'<mujoco><option timestep="{DT}" integrator="Euler" gravity="{grav}"/><worldbody>'
            f'<geom name="floor" type="plane" size="2 2 0.1"/>{bodies}</worldbody></mujoco>')
     model = mujoco.MjModel.from_xml_string(xml)
     d = mujoco.MjData(model)
@@ -199,7 +210,8 @@ def _pybullet(scene: str, steps: int) -> dict:
     c = pb.connect(pb.DIRECT)
     try:
         pb.setAdditionalSearchPath(pybullet_data.getDataPath(), physicsClientId=c)
-        pb.setGravity(0, 0, -G, physicsClientId=c)
+        g = 0.0 if scene == "cross" else G
+        pb.setGravity(0, 0, -g, physicsClientId=c)
         pb.setTimeStep(DT, physicsClientId=c)
         plane = pb.loadURDF("plane.urdf", physicsClientId=c)
         if scene == "drop":  # the lead's pb_stack.py
@@ -227,7 +239,7 @@ def _pybullet(scene: str, steps: int) -> dict:
                 pos, orn = pb.getBasePositionAndOrientation(u, physicsClientId=c)
                 v, w = (np.array(a, dtype=float) for a in pb.getBaseVelocity(u, physicsClientId=c))
                 wl = np.array(pb.getMatrixFromQuaternion(orn)).reshape(3, 3).T @ w
-                e += m * G * pos[2] + 0.5 * m * v @ v + 0.5 * wl @ (inertia * wl)
+                e += m * g * pos[2] + 0.5 * m * v @ v + 0.5 * wl @ (inertia * wl)
                 coms.append(np.array(pos))
                 speed = max(speed, float(np.linalg.norm(v) + HALF * np.linalg.norm(w)))
             return e, coms, speed
@@ -258,7 +270,11 @@ def main(argv) -> None:
     steps = int(argv[3]) if len(argv) > 3 else 2000
     out = run(engine, scene, steps)
     for key, val in out.items():
-        if key == "interfaces":
+        if key == "box_records":
+            for r in val:
+                print(f"box-box record: pair {r.inputs['pair']} COR {r.cor_n:.6g} tau {r.tau:.6g} s x_max "
+                      f"{r.x_max:.4g} m R ({r.parameters['R_a']:.4g}, {r.parameters['R_b']:.4g}) m")
+        elif key == "interfaces":
             for i, row in enumerate(val):
                 print(f"interface {i}: " + ", ".join(f"{k}={v}" for k, v in row.items() if k != "onsets"))
         else:

@@ -130,8 +130,7 @@ def test_the_face_is_the_lower_boxs_whichever_is_body_1():
     lower box's face (a corner down), the lower box's face still (the
     separating-axis test: the tilted box's own face would cut 0.37 h deep
     into the lower box); and two boxes whose edges cross (one turned 45 deg
-    about x over the other's edge turned 45 deg about y) are found crossing
-    and flagged with a warning."""
+    about x over the other's edge turned 45 deg about y) are found crossing."""
     from engines._narrow import BoxOnBox
     from msf_contact.shapes import Box
 
@@ -154,6 +153,71 @@ def test_the_face_is_the_lower_boxs_whichever_is_body_1():
     about_x = np.array([[1.0, 0.0, 0.0], [0.0, r, -r], [0.0, r, r]])
     about_y = np.array([[r, 0.0, r], [0.0, 1.0, 0.0], [-r, 0.0, r]])
     bb = BoxOnBox(box, box, ("top", "bottom"))
-    with pytest.warns(RuntimeWarning, match="edges crossing edges"):
-        bb.choose(np.array([0.0, 0.0, 2 * math.sqrt(2) * h]), about_x, np.zeros(3), about_y, up)
-    assert bb.crossing and "crossing" in bb.note
+    bb.choose(np.array([0.0, 0.0, 2 * math.sqrt(2) * h]), about_x, np.zeros(3), about_y, up)
+    assert bb.crossing
+
+
+def test_crossing_edges_are_two_rounded_edges_crossed():
+    """Edges crossing edges (BoxOnBox's crossing: one box turned 45 deg about
+    x over another turned 45 deg about y, their edges at right angles): slot
+    0 is the crossing of the two rounded edges, x = 2 rho - the inner edges'
+    distance (2 (h - rho) sqrt 2 below the centres' gap), the normal along
+    z, and its law is Hertz's two cylinders of radius rho crossed at 90
+    deg, whose relative curvature (13) is that of a sphere of radius rho on
+    a plane: effective radii (rho, rho) (msf_contact.curvature's
+    combination of principal curvatures at the relative angle)."""
+    from engines._narrow import BoxOnBox, LawBank, effective_radii
+    from msf_contact.shapes import Box
+
+    h, rho, x = 0.025, DEFAULT_EDGE_RADIUS, 2e-5
+    box = Box((h, h, h), rho)
+    r = math.sqrt(0.5)
+    about_x = np.array([[1.0, 0.0, 0.0], [0.0, r, -r], [0.0, r, r]])
+    about_y = np.array([[r, 0.0, r], [0.0, 1.0, 0.0], [-r, 0.0, r]])
+    gap = 2 * (h - rho) * math.sqrt(2) + 2 * rho - x  # the centres' distance for an approach x
+    law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(0.02))
+    bb = BoxOnBox(box, box, ("top", "bottom"))
+    bb.check(law)
+    bb.update(np.array([0.0, 0.0, gap]), about_x, np.zeros(3), about_y, np.zeros(4, bool), law, LawBank(),
+              np.array([0.0, 0.0, 1.0]))
+    per = bb.slots(np.eye(4), np.zeros(4, bool), lambda law, before: None)
+    assert bb.crossing and per[1:] == [None] * 3
+    got_x, point, normal = per[0]
+    assert got_x == pytest.approx(x, rel=1e-9)
+    np.testing.assert_allclose(normal, [0.0, 0.0, 1.0], atol=1e-12)
+    assert point[2] == pytest.approx(0.5 * gap, rel=1e-9)
+    assert effective_radii(bb.law[0].curvature) == pytest.approx((rho, rho), rel=1e-9)
+
+
+#: Steps of the crossing test (box_stack.py cross): the edges close their
+#: 1.33 mm at 0.5 m/s (onset at 2.7 ms) and part 8 ms later.
+CROSS_STEPS = 15
+#: The engines' crossing against the reference solver's sphere of the edge
+#: radius on a plane (the issue's acceptance for an engine against the
+#: reference with the same curvature, as tests/test_narrow_mujoco.py's
+#: ACCEPT_RTOL). Measured: COR 0.70568 (MuJoCo), 0.70552 (pybullet).
+ACCEPT_RTOL = 5e-3
+
+
+@pytest.mark.parametrize("engine", ENGINES)
+def test_crossing_edges_bounce_as_the_sphere_of_the_edge_radius(box_stack, engine):
+    """Two free boxes (no gravity), one turned 45 deg about x closing at 0.5
+    m/s on the other turned 45 deg about y (box_stack.py cross): one contact,
+    the crossing of their rounded edges at right angles through both
+    centres, whose law is the sphere of the edge radius on a plane
+    (effective radii (rho, rho)) with the reduced mass m/2: its COR and tau
+    within ACCEPT_RTOL of msf_contact.simulate_impact of that sphere, no
+    energy gain, no island gain."""
+    from msf_contact import Body, simulate_impact
+
+    out = box_stack.run(engine, "cross", CROSS_STEPS)
+    assert out["gain_J"] <= ENERGY_GAIN_RTOL * out["E0_J"], out
+    assert out["island_gains"] == 0 and len(out["box_records"]) == 1, out
+    rec = out["box_records"][0]
+    rho, m = DEFAULT_EDGE_RADIUS, box_stack.MASS / 2
+    assert (rec.parameters["R_a"], rec.parameters["R_b"]) == pytest.approx((rho, rho), rel=1e-9)
+    law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(rho))
+    ref = simulate_impact(law, Body(preset("natural-rubber"), rho, m, 0.4 * m * rho * rho),
+                          Body.half_space(preset("steel")), box_stack.CROSS_SPEED)
+    assert math.isclose(rec.cor_n, ref.cor_n, rel_tol=ACCEPT_RTOL), (rec.cor_n, ref.cor_n)
+    assert math.isclose(rec.tau, ref.tau, rel_tol=ACCEPT_RTOL), (rec.tau, ref.tau)

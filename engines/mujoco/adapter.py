@@ -1270,11 +1270,8 @@ class MujocoAdapter(EngineAdapter):
         if isinstance(bx, BoxOnBox):  # the other box's face at its current pose
             up = -np.asarray(m.opt.gravity, dtype=float)
             bx.update(d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3), d.geom_xpos[g2], d.geom_xmat[g2].reshape(3, 3),
-                      busy, self.pairs[first].law, self.laws, up)
+                      busy, self.pairs[first].law, self.laws, up, float(d.time))
             normal = bx.normal
-            if bx.note is not None:  # edges crossing edges: the contacts in progress flagged
-                for s in np.flatnonzero(mgr.active[first:first + bx.n]):
-                    mgr.flag_contact(first + int(s), bx.note, float(d.time))
         else:
             bx.update(d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3), d.geom_xpos[g2],
                       d.geom_xmat[g2].reshape(3, 3)[:, 2], busy, self.pairs[first].law, self.laws)

@@ -1342,11 +1342,9 @@ class PybulletAdapter(EngineAdapter):
         if isinstance(np_.box, BoxOnBox):  # a box on a free box: its face at its current pose
             moving = mgr.active[i0:i0 + n] & ~mgr.settled[i0:i0 + n]
             up = -np.asarray(self._gravity(), dtype=float)
-            changed = np_.box.update(c1, R1, c2, R2, required[i0:i0 + n], self.pairs[i0].law, self.laws, up)
+            changed = np_.box.update(c1, R1, c2, R2, required[i0:i0 + n], self.pairs[i0].law, self.laws, up,
+                                     self.time)
             self._have_last[i0 + np.flatnonzero(changed)] = False
-            if np_.box.note is not None:  # edges crossing edges: the contacts in progress flagged
-                for s in np.flatnonzero(mgr.active[i0:i0 + n]):
-                    mgr.flag_contact(i0 + int(s), np_.box.note, self.time)
             nWn = self._normal_coupling(i0, poses, np_.box.points(), np_.box.normal)
             self._narrow_found[i0:i0 + n] = np_.box.slots(nWn, moving, mgr.refresh_law)
             return
