@@ -51,7 +51,8 @@ def drive(client: int, uid: int, path: str):
 
 
 def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *, seed: int = SEED,
-              tell: bool = True, limit_trial: bool | None = None, law_options: dict | None = None) -> dict:
+              tell: bool = True, limit_trial: bool | None = None, law_options: dict | None = None,
+              observer=None, adapter_options: dict | None = None) -> dict:
     """One variant: ``steps`` steps of torques seeded with ``seed`` then
     ``rest_steps`` (default ``steps``) without; the record's fields (module
     docstring) and the adapter (None for the built-in contact). tell: with
@@ -62,7 +63,14 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *
     told, which it needs). law_options: keyword arguments of
     ``load_mjcf_with_msf_floor`` for the feet's law (``mu``: their Coulomb
     cap, by default the friction pybullet's own contact gives each pair, the
-    built-in variant's; ``{"mu": None}`` for none, the paper's law)."""
+    built-in variant's; ``{"mu": None}`` for none, the paper's law).
+    observer: with MSF, an object whose ``before(adapter, account, phase)``
+    and ``after(adapter, account, phase, step)`` are called around every
+    step (phase "torque" or "rest"; the account a RestEnergy, kept over the
+    torques too; scripts/pybullet_rest_split.py).
+    adapter_options: further keyword arguments of the MSF variant's
+    PybulletAdapter (``{"anchor_depth": False}``: the internal approach as
+    integrated, as before)."""
     import pybullet as pb
     import pybullet_data
 
@@ -82,17 +90,24 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *
         uid = robots[0]
         joints, bound = drive(c, uid, path)
         trial = tell if limit_trial is None else limit_trial
-        adapter = PybulletAdapter(c, pairs, link_shapes=shapes, limit_trial=trial) if msf else None
+        adapter = (PybulletAdapter(c, pairs, link_shapes=shapes, limit_trial=trial, **(adapter_options or {}))
+                   if msf else None)
         step = adapter.step if msf else (lambda: pb.stepSimulation(physicsClientId=c))
         rng = np.random.default_rng(seed)
+        watch = RestEnergy(adapter, robots) if (msf and observer is not None) else None
         t = time.perf_counter()
-        for _ in range(steps):
+        for k in range(steps):
             tau = rng.uniform(-1.0, 1.0, len(joints)) * bound
             if msf and tell:  # pybullet's TORQUE_CONTROL, told to the contacts (PybulletAdapter.set_joint_torques)
                 adapter.set_joint_torques(uid, joints, tau)
             else:
                 pb.setJointMotorControlArray(uid, joints, pb.TORQUE_CONTROL, forces=tau.tolist(), physicsClientId=c)
+            if watch is not None:
+                observer.before(adapter, watch, "torque")
             step()
+            if watch is not None:
+                watch.update()
+                observer.after(adapter, watch, "torque", k + 1)
         wall = time.perf_counter() - t
         if msf:  # the limit trial's share of the MSF step under the torques (PybulletAdapter.limit_trial_s)
             trial_s = adapter.limit_trial_s
@@ -102,10 +117,14 @@ def run_model(name: str, steps: int, msf: bool, rest_steps: int | None = None, *
         acc = RestEnergy(adapter, robots) if msf else None
         E = [acc.total] if msf else [mechanical_energy(c, robots)]
         C = [acc.contacts] if msf else []
-        for _ in range(rest_steps):
+        for k in range(rest_steps):
+            if observer is not None and msf:
+                observer.before(adapter, acc, "rest")
             step()
             if msf:
                 E.append(acc.update())
+                if observer is not None:
+                    observer.after(adapter, acc, "rest", k + 1)
                 C.append(acc.contacts)
             else:
                 E.append(mechanical_energy(c, robots))

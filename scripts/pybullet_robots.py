@@ -5,7 +5,8 @@ docs/engines.md quotes (issue 13):
     .venv/bin/python scripts/pybullet_robots.py ant          # ant.xml resting on its feet, 10, 1 and 0.2 ms
     .venv/bin/python scripts/pybullet_robots.py feet         # ant.xml put down on its feet, the account, 10 ms
     .venv/bin/python scripts/pybullet_robots.py twist        # ant.xml on its ankle limits, twisted, 10, 5, 2.5 ms
-    .venv/bin/python scripts/pybullet_robots.py seeds        # the robots_pybullet benchmark's ant, seeds 13, 1, 2, 3, 4
+    .venv/bin/python scripts/pybullet_robots.py seeds        # the robots_pybullet benchmark's ant, seeds 13, 1-4,
+                                                             # before (no second trial, no depth anchoring) and now
     .venv/bin/python scripts/pybullet_robots.py landing      # ant.xml put down on its ankle limits, 0.3 s at 10 ms
 
 ``--no-trial`` makes the adapters without ``limit_trial`` (a joint within
@@ -14,7 +15,9 @@ JOINT_LIMIT_TOL of a limit taken as held, as before the trial step);
 (``load_mjcf_with_msf_floor(mu=)``): ``engine`` (the default: the friction
 pybullet's own contact gives each pair, the ant's feet 0.75, the
 humanoid's 0.25), ``none`` (the paper's law, no cap) or a number;
-``seeds --model humanoid.xml`` runs the benchmark's humanoid instead.
+``seeds --model humanoid.xml`` runs the benchmark's humanoid instead,
+``seeds --variants before retrial anchor now`` the adapter variants of
+VARIANTS side by side (default: before and now), ``--seeds`` other seeds.
 
 Each run puts the body on a steel floor (natural rubber, gravity 9.81
 m/s^2), no torques, and prints the mechanical energy plus the elastic
@@ -192,27 +195,54 @@ def twist(dt: float, seconds: float, wz: float = 5.0) -> str:
         pb.disconnect(c)
 
 
-def seeds(tell: bool, mu, model: str = "ant.xml") -> list[str]:
+#: seeds' adapter variants side by side: name -> PybulletAdapter options (--variants)
+VARIANTS = {"before": {"anchor_depth": False, "limit_retrial": False},
+            "retrial": {"anchor_depth": False, "limit_retrial": True},
+            "anchor": {"anchor_depth": True, "limit_retrial": False},
+            "now": {}}
+
+
+def seeds(tell: bool, mu, model: str = "ant.xml", variants=("before", "now"), which=(13, 1, 2, 3, 4)) -> list[str]:
     """The robots_pybullet benchmark's MSF robot (1,000 steps of torques, 1,000
     at rest) under seeds 13 (the benchmark's), 1, 2, 3 and 4, the torques told
     to the adapter or set through pybullet's own call (seen a step late); mu
-    the feet's cap (load_mjcf_with_msf_floor(mu=))."""
+    the feet's cap (load_mjcf_with_msf_floor(mu=)); each seed with the
+    adapter ``variants`` (VARIANTS: "before" without the second limit trial
+    and without the depth anchoring, "now" the defaults), then a table of the
+    contacts' own balance's largest rise above its running minimum and the
+    rest steps above RestEnergy's bound per seed and variant."""
     import sys
 
     sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir))
     from benchmarks.robots_pybullet import run_model
 
-    out = []
-    for seed in (13, 1, 2, 3, 4):
-        r = run_model(model, 1000, True, seed=seed, tell=tell, limit_trial=TRIAL and tell, law_options={"mu": mu})
-        out.append(f"{model}, seed {seed}, torques {'told' if tell else 'late'}, limit trial {TRIAL and tell}, mu {mu}: rest "
-                   f"{r['rest_energy_J'][0]:.1f} -> {r['rest_energy_J'][1]:.1f} J, rise above the running minimum "
-                   f"{r['rest_rise_J']:.3g} J, pybullet added {r['rest_engine_added_J']:.3g} J, the contacts' own "
-                   f"balance rose {r['rest_contacts_rise_J']:.3g} J ({r['rest_contact_gain_steps']} steps above "
-                   f"RestEnergy's bound, the largest {r['rest_largest_contact_gain_J']:.3g} J; "
-                   f"{r['rest_gain_steps']} of the account, the largest {r['rest_largest_gain_J']:.3g} J); "
-                   f"the trial's misses (held not tried, tried not held) {r['limit_trial_misses']} of "
-                   f"{r['adapter'].limit_trials} trials")
+    out, table = [], {}
+    for seed in which:
+        for var in variants:
+            r = run_model(model, 1000, True, seed=seed, tell=tell, limit_trial=TRIAL and tell, law_options={"mu": mu},
+                          adapter_options=VARIANTS[var])
+            table[(seed, var)] = (r["rest_contacts_rise_J"], r["rest_contact_gain_steps"],
+                                  r["rest_largest_contact_gain_J"])
+            ad = r["adapter"]
+            out.append(f"{model}, seed {seed}, {var}, torques {'told' if tell else 'late'}, limit trial "
+                       f"{TRIAL and tell}, mu {mu}: rest "
+                       f"{r['rest_energy_J'][0]:.1f} -> {r['rest_energy_J'][1]:.1f} J, rise above the running minimum "
+                       f"{r['rest_rise_J']:.3g} J, pybullet added {r['rest_engine_added_J']:.3g} J, the contacts' own "
+                       f"balance rose {r['rest_contacts_rise_J']:.3g} J ({r['rest_contact_gain_steps']} steps above "
+                       f"RestEnergy's bound, the largest {r['rest_largest_contact_gain_J']:.3g} J; "
+                       f"{r['rest_gain_steps']} of the account, the largest {r['rest_largest_gain_J']:.3g} J); "
+                       f"the trial's misses (held not tried, tried not held) {r['limit_trial_misses']} of "
+                       f"{ad.limit_trials} trials, {ad.limit_retrials} steps solved again after the second trial; "
+                       f"{ad.anchored} contact-steps anchored to the engine's depth, releasing "
+                       f"{ad.anchor_released:.3g} J")
+            print(out[-1], flush=True)
+    out.append(f"{model}: the contacts' own balance at rest, largest rise above its running minimum (rest steps above "
+               "RestEnergy's bound; the largest step)")
+    out.append("| seed | " + " | ".join(variants) + " |")
+    out.append("|---" * (len(variants) + 1) + "|")
+    for seed in which:
+        out.append(f"| {seed} | " + " | ".join("{:.3g} J ({}; {:.3g} J)".format(*table[(seed, v)])
+                                               for v in variants) + " |")
     return out
 
 
@@ -224,6 +254,9 @@ if __name__ == "__main__":
     ap.add_argument("--mu", default="engine",
                     help="the feet's Coulomb cap: engine (pybullet's friction of the pair), none, or a number")
     ap.add_argument("--model", default="ant.xml", choices=("ant.xml", "humanoid.xml"), help="seeds: the robot")
+    ap.add_argument("--variants", nargs="+", default=["before", "now"], choices=tuple(VARIANTS),
+                    help="seeds: the adapter variants side by side (before: no second trial, no depth anchoring)")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[13, 1, 2, 3, 4], help="seeds: the torque seeds")
     args = ap.parse_args()
     TRIAL = not args.no_trial
     MU = None if args.mu == "none" else (args.mu if args.mu == "engine" else float(args.mu))
@@ -234,7 +267,7 @@ if __name__ == "__main__":
         print(dumbbell("capsule", 1e-3, 1.0))
     elif args.case == "seeds":
         for tell in (True, False) if args.late else (True,):
-            print("\n".join(seeds(tell, MU, args.model)))
+            print("\n".join(seeds(tell, MU, args.model, args.variants, args.seeds)[-(len(args.seeds) + 3):]))
     elif args.case == "feet":
         print(feet(1e-2, 1.0))
     elif args.case == "landing":

@@ -83,6 +83,7 @@ from engines._geometry import cross_rows
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance, effective_inverse_inertia_free
 from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines._contacts.balance import DeepOnsets
+from engines._contacts import snapshot as _snapshot
 from engines._contacts.state import CENTRED_RTOL, lever_terms_free
 from engines.pybullet.scenes import MAX_COORDINATE_VELOCITY
 from engines.base import STEPS_PER_CONTACT_MIN, ContactKinematics, EngineAdapter, PairSpec, check_law_curvature
@@ -245,6 +246,17 @@ class PybulletAdapter(EngineAdapter):
         set with pybullet's own call acts for one ``stepSimulation``, the
         trial's, and is lost (pybullet cannot report it to be set again), as
         is a force of ``applyExternalForce`` given before :meth:`step`.
+    limit_retrial: with ``limit_trial``, try the step a second time with the
+        forces the contacts gave in it (:meth:`_limit_retrial`); where that
+        trial holds other joints than the first, the contacts' step is taken
+        again with them (the manager's state put back,
+        engines._contacts.snapshot). Default True; False: one trial, as
+        before (for comparison).
+    anchor_depth: a contact on a link of a multibody whose internal approach
+        x lies deeper than the engine's geometry allows (x_e plus the
+        semi-implicit lead since its onset) is brought up to it at the step
+        start, never deeper (:meth:`_anchor_depths`): default True; False
+        keeps the internal x as integrated (as before, for comparison).
     compiled: do the per-step array work of the fast pairs (detection,
         velocities, a_ext, W, the cross-pair correction, the forces summed
         per body) in the numba kernels of :mod:`engines.pybullet._kernels`
@@ -256,14 +268,24 @@ class PybulletAdapter(EngineAdapter):
 
     def __init__(self, client: int, pairs: list[PairSpec], compiled: bool = True, *, edge_radii: dict | None = None,
                  curvature: dict | None = None, link_shapes: dict | None = None, mesh_slots: dict | None = None,
-                 limit_trial: bool = False):
+                 limit_trial: bool = False, limit_retrial: bool = True, anchor_depth: bool = True):
         if not isinstance(client, int) or not pb.isConnected(client):
             raise ValueError(f"client = {client!r} is not a connected pybullet physics client")
         if not isinstance(compiled, bool):
             raise ValueError(f"compiled = {compiled!r} must be True or False")
         if not isinstance(limit_trial, bool):
             raise ValueError(f"limit_trial = {limit_trial!r} must be True or False")
+        if not isinstance(limit_retrial, bool):
+            raise ValueError(f"limit_retrial = {limit_retrial!r} must be True or False")
+        if not isinstance(anchor_depth, bool):
+            raise ValueError(f"anchor_depth = {anchor_depth!r} must be True or False")
         self.client = client
+        #: a link contact's internal approach kept no deeper than the engine's geometry (_anchor_depths)
+        self.anchor_depth = anchor_depth
+        self.limit_retrial = limit_retrial  #: a second trial with the step's own forces (_limit_retrial)
+        self.limit_retrials = 0  #: steps whose contacts were solved again after the second trial (_limit_retrial)
+        self.anchored = 0  #: contact-steps whose internal approach was brought up to the engine's (_anchor_depths)
+        self.anchor_released = 0.0  #: elastic energy those moves released [J] (a loss in the contacts' balance)
         #: which joint limits hold a multibody found by a trial step (_limit_trial), not by the joints' positions
         self.limit_trial = limit_trial
         self.limit_trials = 0  #: trial steps taken (_limit_trial)
@@ -1020,28 +1042,82 @@ class PybulletAdapter(EngineAdapter):
         speed compared with its limit rows' bounds, the state restored and the
         torques told (:meth:`set_joint_torques`) set again (TORQUE_CONTROL acts
         for one step: the trial used them). Into ``_engaged`` for :meth:`_held_dofs`."""
-        c = self.client
         t0 = time.perf_counter()
         uids = sorted({int(self._b_uid[j]) for j in self._art_slots})
         for uid in uids:
             self._multibody(uid)  # this step's joint state, before the trial moves it
-        loads = self._trial_loads(bodies)
+        self._engaged.update(self._try_step(bodies, self._trial_loads(bodies), uids))
+        self._engaged_at = self._steps
+        self.limit_trials += 1
+        self.limit_trial_s += time.perf_counter() - t0
+
+    def _try_step(self, bodies: _Bodies, loads, uids) -> dict:
+        """{uid: (m,) bool held joints} of the multibodies ``uids`` over one
+        ``stepSimulation`` with ``loads`` ((pairs, forces, points) or None)
+        applied, pybullet's state restored after it and the told torques set
+        again (:meth:`_limit_trial`)."""
+        c = self.client
         sid = pb.saveState(physicsClientId=c)
         try:
             if loads is not None:
                 self._apply(bodies, *loads)
             pb.stepSimulation(physicsClientId=c)
-            for uid in uids:
-                self._engaged[uid] = self._held_over_step(uid)
+            return {uid: self._held_over_step(uid) for uid in uids}
         finally:
             pb.restoreState(sid, physicsClientId=c)
             pb.removeState(sid, physicsClientId=c)
             for uid, tau in self._tau.items():
                 pb.setJointMotorControlArray(uid, self._movable[uid], pb.TORQUE_CONTROL, forces=tau.tolist(),
                                              physicsClientId=c)
-        self._engaged_at = self._steps
-        self.limit_trials += 1
+
+    def _limit_retrial(self, bodies: _Bodies, kin: ContactKinematics, out) -> bool:
+        """The second trial (``limit_retrial``): this step tried again with the
+        forces the contacts just gave (``out``, step-averaged, at their
+        points) instead of the first trial's prediction. Where it holds other
+        joints than the first, those are taken (``_engaged``), the
+        multibody's inverse inertia is made again and the rows of ``kin`` on
+        its links get their W, W_com and the torque change's share of a_ext
+        from it (the caller then puts the manager's state back and steps the
+        contacts again); True then. The first trial's prediction (the last
+        step's loads, an impact's stopping force) missed about one step in
+        ten on the ant and the humanoid: a force of 10x the predicted one
+        holds a joint the trial left free (the humanoid's forearm, seed 4:
+        +6.05 J in one step, docs/engines.md)."""
+        t0 = time.perf_counter()
+        pair = np.asarray(out.pair, int)
+        force = np.asarray(out.force, float)
+        hit = np.flatnonzero(np.any(force != 0.0, axis=1))
+        uids = sorted(self._engaged)
+        loads = (pair[hit], force[hit], np.asarray(out.point, float)[hit]) if hit.size else None
+        held = self._try_step(bodies, loads, uids)
+        changed = [u for u in uids if not np.array_equal(held[u], self._engaged[u])]
+        if changed:
+            old = {u: self._torque_dq(u) for u in changed}
+            for u in changed:
+                self._engaged[u] = held[u]
+                mb = self._multibody(u)
+                del mb[3:]
+                mb[2] = None  # M^-1 with the new held joints (_minv), the torque change through it (_torque_dq)
+            kp = np.asarray(kin.pair, int)
+            for r, i in enumerate(kp.tolist()):
+                j1, j2 = self._slot[i]
+                uid_r = {int(self._b_uid[j]) for j in (j1, j2) if self._b_art[j]}
+                if not uid_r & set(changed):
+                    continue
+                poses = (bodies.pose(j1), bodies.pose(j2))
+                kin.W[r], kin.W_com[r] = self._inverse_inertia(i, poses, kin.point[r])
+                for b, pose, j, sign in ((self._bodies[i][0], poses[0], j1, 1.0),
+                                         (self._bodies[i][1], poses[1], j2, -1.0)):
+                    if not (self._b_art[j] and b[0] in old):
+                        continue
+                    dq0, dq1 = old[b[0]], self._torque_dq(b[0])
+                    if dq0 is None and dq1 is None:
+                        continue
+                    diff = (0.0 if dq1 is None else dq1) - (0.0 if dq0 is None else dq0)
+                    kin.a_ext[r] = kin.a_ext[r] + sign * (self._jacobian(b, pose, kin.point[r]) @ diff)
+                    self._last_a_ext[i] = kin.a_ext[r]
         self.limit_trial_s += time.perf_counter() - t0
+        return bool(changed)
 
     def _held_over_step(self, uid) -> np.ndarray:
         """(m,) bool: the movable joints of multibody ``uid`` a limit held over
@@ -1537,7 +1613,15 @@ class PybulletAdapter(EngineAdapter):
         kin.pair = np.asarray(kin.pair, int)
         kin.lever = self._lever(bodies, kin)
         self._cur_bodies = bodies
+        if self.anchor_depth and self._art_slots:
+            self._anchor_depths(kin)
+        again = self.limit_trial and self.limit_retrial and self._engaged_at == self._steps
+        saved = _snapshot.save(self.manager) if again else None
         out = self.manager.step(self._mask(kin))
+        if again and self._limit_retrial(bodies, kin, out):
+            _snapshot.restore(self.manager, saved)
+            out = self.manager.step(self._mask(kin))
+            self.limit_retrials += 1
         self._check_deep_onsets(float(kin.t))
         self._say_unchecked()
         self._last_kin, self._last_out = kin, out
@@ -1565,6 +1649,53 @@ class PybulletAdapter(EngineAdapter):
         touched = np.union1d(self.manager.active_pairs, pair[hit])
         if touched.size:
             self._see_motors(touched)
+
+    def _anchor_depths(self, kin: ContactKinematics) -> None:
+        """Bring the internal approach x of the contacts in progress on a link
+        of a multibody up to the engine's geometry where it lies deeper, at the
+        step start: x <= max(x_e - (dt/2)(x'_e - x'_0), 0), x_e the engine's
+        approach now, x'_e its approach rate now (less the timing correction's
+        offset), x'_0 the closing speed at the contact's onset. Why that bound
+        (state.RELAX_DOC): the engine's semi-implicit Euler moves a body by dt
+        v_end, so over a sub-cycled step x_e advances (dt/2)(x'_end -
+        x'_start) more than the integrated x; from the onset (x = x_e then)
+        x_e - x = (dt/2)(x' - x'_0) while the steps' W and a_ext are right,
+        and over a settled step it stays (x' ~ 0: x = x_e + (dt/2) x'_0).
+        Deeper than that is drift: a link's a_ext is the last step's (the
+        finite difference), its W may hold the wrong joints (limit_trial's
+        misses), and a step's error of the contact point's velocity change
+        moves x and x_e apart. Under the benchmark's random torques the ant's
+        feet's x - x_e was 2.2 mm (median; 90 % 6.1 mm, up to 24.5 mm, seed
+        3), the internal x the deeper in 86 % of the contact-steps: a foot
+        the engine held 3.05 mm above the floor was pushed as from 2.1 mm
+        inside it, and the step's error F (dx - dx_e) was a gain of 2.29 J
+        (seed 3's first rest step, docs/engines.md). A move to a smaller
+        approach releases the elastic energy between the two (a loss,
+        ``anchor_released``; the tangential W_t - Q_t is kept); x is never
+        moved deeper (that would store energy no force worked for: the
+        resting relaxation does it, energy-funded, state.relax). A bound of 0
+        ends the contact in the step (it opens from touching)."""
+        from engines._contacts.balance import IslandBalance
+
+        mgr = self.manager
+        pair = np.asarray(kin.pair, int)
+        j1, j2 = self._slot[pair, 0], self._slot[pair, 1]
+        on = mgr.active[pair] & (self._b_art[j1] | self._b_art[j2])
+        if not np.any(on):
+            return
+        r = np.flatnonzero(on)
+        p = pair[r]
+        n = np.asarray(kin.normal, float)[r]
+        rate = -np.einsum("ij,ij->i", np.asarray(kin.v_rel, float)[r] - mgr.dv_corr[p], n)
+        target = np.maximum(np.asarray(kin.x, float)[r] - 0.5 * self._dt * (rate - mgr.v_n_in[p]), 0.0)
+        deep = mgr.x[p] > target
+        if not np.any(deep):
+            return
+        q = p[deep]
+        before = IslandBalance.stored_rows(mgr, q)
+        mgr.x[q] = target[deep]
+        self.anchor_released += float(np.sum(before - IslandBalance.stored_rows(mgr, q)))
+        self.anchored += int(q.size)
 
     def _check_deep_onsets(self, t0: float) -> None:
         """Never silent: a contact on a link of a multibody or from a narrow
