@@ -241,7 +241,8 @@ class PybulletAdapter(EngineAdapter):
         off (the ant landing on its ankle limits: its contacts' own balance
         rose 2.45 J in two steps; with the trial 0.003 J,
         tests/test_robots_pybullet.py). Costs one more ``stepSimulation``
-        and a ``saveState`` per step (~1.3 ms on the ant). Set the joint
+        and a ``saveState`` per step (~1.3 ms on the ant; two with
+        ``limit_retrial``). Set the joint
         torques through :meth:`set_joint_torques`: a TORQUE_CONTROL torque
         set with pybullet's own call acts for one ``stepSimulation``, the
         trial's, and is lost (pybullet cannot report it to be set again), as
