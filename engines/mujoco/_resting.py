@@ -64,10 +64,12 @@ def eligible(ad) -> bool:
 
 def _args(ad, factor: float) -> list:
     """[MjData's qfrc_passive, resting_step's arguments after the per-call ones, its counters,
-    what to call]: the adapter's, the manager's and the MjData's arrays, which live as long as the
-    adapter, built once (again when the manager's law tables are replaced: ContactManager.set_law);
-    factor: the adapter's CANDIDATE_FACTOR. What to call: resting_step until its first call with
-    these arguments, then its compiled function for their types (:func:`_compiled`)."""
+    what to call, the rows k of the free group, the last resting step's kinematics and after_step
+    views (None until made; :func:`step`)]: the adapter's, the manager's and the MjData's arrays,
+    which live as long as the adapter, built once (again when the manager's law tables are
+    replaced: ContactManager.set_law); factor: the adapter's CANDIDATE_FACTOR. What to call:
+    resting_step until its first call with these arguments, then its compiled function for their
+    types (:func:`_compiled`)."""
     mgr = ad.manager
     a = ad._rest_args
     if a is not None and a[0] is mgr._kcodes and a[1] is mgr._kLC:
@@ -91,7 +93,7 @@ def _args(ad, factor: float) -> list:
         np.zeros(P, np.bool_), mgr.t_onset, SETTLE_AFTER_DURATIONS, STEPS_PER_CONTACT_MIN,
         np.empty(k, np.bool_), np.empty(k, np.bool_), np.empty((2 * k, 3), np.int64), np.empty((2 * k, 3)),
         np.empty((2 * k, 3)))
-    ad._rest_args = (mgr._kcodes, mgr._kLC, [d.qfrc_passive, args, ints, resting_step])
+    ad._rest_args = (mgr._kcodes, mgr._kLC, [d.qfrc_passive, args, ints, resting_step, k, None, None])
     return ad._rest_args[2]
 
 
@@ -114,47 +116,48 @@ def step(ad, factor: float) -> tuple[bool, bool, int]:
     made from when every one is held. Returns (done, applied, n): done, the step computed as
     the general path computes it (applied: and its forces added to qfrc_passive); not done, the
     free group's n candidate rows are in the adapter's kinematics buffers and the general path
-    goes on from there. factor: the adapter's CANDIDATE_FACTOR."""
+    goes on from there. factor: the adapter's CANDIDATE_FACTOR.
+
+    Its Python runs once per engine step between MuJoCo's passes, with the interpreter's caches
+    cold (in the 1,000-sphere benchmark a Python operation here costs ~2-3 times what it costs in
+    a loop): the views and kinematics of the last resting step are kept (:func:`_args`' last two
+    slots) and the common case is one test."""
     mgr = ad.manager
+    a = ad._rest_args
+    cached = a[2] if a is not None and a[0] is mgr._kcodes and a[1] is mgr._kLC else _args(ad, factor)
+    qfrc, args, ints, call, k, kin, todo = cached
     # d.time, which the step tracker read in this hook call (only the hook calls this, after
     # StepTracker.classify; an MjData field read from Python costs ~1 us in the hook)
     t0 = ad._tracker.t0
-    cached = _args(ad, factor)
-    qfrc, args, ints, call = cached
-    k = ad._gi.shape[0]
     # the step's ContactForces arrays, new every step (the manager's are; a caller may keep them)
     force, point, pair = np.empty((k, 3)), np.empty((k, 3)), np.empty(k, np.int64)
-    head = (t0, float(mgr.dt), float(mgr.settle_rate), bool(mgr.timing_correction), qfrc, force, point, pair)
-    code, n, bad, n_hit, n_unheld, m = call(*head, *args)
+    code, n, bad, n_hit, n_unheld, m = call(t0, float(mgr.dt), float(mgr.settle_rate), bool(mgr.timing_correction),
+                                            qfrc, force, point, pair, *args)
     if call is resting_step:
-        cached[3] = _compiled(head + args)
-    if code == BAD_DETECTION:
-        ad._detection_failed(bad)
+        cached[3] = _compiled((t0, float(mgr.dt), float(mgr.settle_rate), bool(mgr.timing_correction), qfrc, force,
+                               point, pair) + args)
     if code != RESTING:
+        if code == BAD_DETECTION:
+            ad._detection_failed(bad)
         return False, False, n
-    if n != k:
-        force, point, pair = force[:n], point[:n], pair[:n]
     # what the general path leaves on the adapter and the manager (_compute_rest, ContactManager.step);
-    # no link pairs (eligible): _check_deep_onsets has nothing to do. The
-    # kinematics of the last resting step are views of the same buffers: kept when n is the same
-    kin = ad._rest_kin
-    if kin is None or kin is not getattr(ad, "_last_kin", None) or kin.pair.shape[0] != n:
-        fk = ad._fk_bufs
-        kin = ad._rest_kin = ContactKinematics(fk[0][:n], fk[1][:n], fk[2][:n], fk[3][:n], fk[4][:n], fk[5][:n],
-                                               fk[6][:n], fk[7][:n], fk[8][:n], t0)
+    # no link pairs (eligible): _check_deep_onsets has nothing to do. The kinematics of the last
+    # resting step (views of the same buffers) are kept when n is the same and the general path
+    # has not made others since; after_step's outputs stay in the kernel's buffers (the last
+    # arguments), views kept while m is the same
+    if n != k or kin is None or kin is not ad._last_kin or todo[0].shape[0] != m:
+        force, point, pair, kin, todo = _views(ad, cached, force, point, pair, n, m, t0)
     else:
         kin.t = t0
     c = ints.tolist()
     mgr.last_step_info = {"rows": n, "substeps": c[2], "segments": 1, "onsets": 0, "ends": c[3], "settled": c[0],
                           "settled_iterations": c[1], "island_rows": 0}
-    out = ad._last_out = ad.last_forces = ContactForces(force, point, pair)
-    ad._last_kin = kin
+    ad._last_out = ad.last_forces = ContactForces(force, point, pair)
     ad._apply = []
     ad._apply_couple = None
-    # after_step's outputs, in the kernel's buffers (the last arguments) until the next resting step
-    todo = ad._rest_todo
-    if todo is None or todo[0].shape[0] != m or todo[0].base is not args[-3]:
-        todo = ad._rest_todo = (args[-3][:m], args[-2][:m], args[-1][:m])
+    if n_hit and m and not n_unheld:  # the common case: every force held and applied
+        ad._apply_fast = todo
+        return True, True, n
     ad._apply_fast = todo if n_hit and m else None
     if not n:
         ad.last_forces = None
@@ -164,3 +167,24 @@ def step(ad, factor: float) -> tuple[bool, bool, int]:
                          n_unheld, todo)
         return True, False, n
     return True, bool(n_hit), n
+
+
+def _views(ad, cached: list, force, point, pair, n: int, m: int, t0: float) -> tuple:
+    """:func:`step`'s (force, point, pair) cut to the n rows, and the kinematics and after_step
+    views of this step, made (and kept in ``cached`` and on the adapter) when the kept ones do
+    not fit."""
+    if n != cached[4]:
+        force, point, pair = force[:n], point[:n], pair[:n]
+    kin = cached[5]
+    if kin is None or kin is not ad._last_kin or kin.pair.shape[0] != n:
+        fk = ad._fk_bufs
+        kin = cached[5] = ContactKinematics(fk[0][:n], fk[1][:n], fk[2][:n], fk[3][:n], fk[4][:n], fk[5][:n],
+                                            fk[6][:n], fk[7][:n], fk[8][:n], t0)
+        ad._last_kin = kin
+    else:
+        kin.t = t0
+    todo = cached[6]
+    if todo is None or todo[0].shape[0] != m:
+        args = cached[1]
+        todo = cached[6] = (args[-3][:m], args[-2][:m], args[-1][:m])
+    return force, point, pair, kin, todo

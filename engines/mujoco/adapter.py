@@ -650,8 +650,7 @@ class MujocoAdapter(EngineAdapter):
         self.fused = self.compiled
         self._rest_args = None  # its arguments (engines.mujoco._resting._args)
         self._all_msf = True  # every pair on MSF (set_mode)
-        self._rest_kin = None  # the kinematics the last resting step made (engines.mujoco._resting.step)
-        self._rest_todo = None  # the forces it left to apply, views of its buffers (_resting.step)
+        self._last_kin = None  # the kinematics of the last step (_compute, _compute_rest, _resting.step)
         for i, sb in self._sphere_box.items():  # each sphere-box pair's own law, its curvature following the point
             self.manager.set_law(i, sb.law)
         self.manager.settle_rigid[:] = ~self._link_pairs  # links keep the RK4 island at rest (resting.py)
