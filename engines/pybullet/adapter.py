@@ -354,6 +354,7 @@ class PybulletAdapter(EngineAdapter):
                 self._shapes.append((s1, s2))
                 self._narrow_of.append((len(self._narrow) - 1, q))
                 expanded.append(p)
+        self._check_compounds(pairs)
         super().__init__(expanded)
         for i, sb in self._sphere_box.items():  # each sphere-box pair's own law, its curvature following the point
             self.manager.set_law(i, sb.law)
@@ -590,6 +591,49 @@ class PybulletAdapter(EngineAdapter):
         except (TypeError, ValueError, IndexError):
             raise ValueError(f"{what}: key {k!r} must be (body unique id, link index)") from None
 
+    def _n_shapes(self, b) -> int:
+        """How many collision shapes link ``b`` (uid, link) has: its link_shapes, else pybullet's."""
+        if b in self._link_shapes:
+            return len(self._link_shapes[b])
+        return len(pb.getCollisionShapeData(b[0], b[1], physicsClientId=self.client))
+
+    def _check_compounds(self, pairs) -> None:
+        """ValueError unless the pairs of two links with several shapes (a
+        compound: a tray, a table, a robot link of several geoms) cover every
+        shape of one against every shape of the other: pybullet's own
+        collision is switched off for the whole link pair (setCollisionFilterPair),
+        so a shape with no pair would collide with nothing, silently; and unless
+        each such pair's points are found by the adapter itself (pybullet's
+        getClosestPoints answers for the whole link, every shape at once)."""
+        covered: dict = {}
+        for i, p in enumerate(pairs):
+            key = ((int(p.body1[0]), int(p.body1[1])), (int(p.body2[0]), int(p.body2[1])))
+            k = (int(p.body1[2]) if len(p.body1) == 3 else 0, int(p.body2[2]) if len(p.body2) == 3 else 0)
+            covered.setdefault(key, {})[k] = i
+        for (b1, b2), ks in covered.items():
+            n1, n2 = self._n_shapes(b1), self._n_shapes(b2)
+            if n1 * n2 == 1:
+                continue
+            missing = [(k1, k2) for k1 in range(n1) for k2 in range(n2) if (k1, k2) not in ks]
+            if missing:
+                names = self._body_name(b1), self._body_name(b2)
+                raise ValueError(
+                    f"pairs between {names[0]} ({n1} collision shapes) and {names[1]} ({n2}) cover {len(ks)} of their "
+                    f"{n1 * n2} shape pairs (missing (k1, k2) = {missing[:6]}{' ...' if len(missing) > 6 else ''}): "
+                    "pybullet's own collision is switched off for the link pair, so the shapes left out would "
+                    "collide with nothing; give a PairSpec for each, bodies (uid, link, k)")
+        for np_ in self._narrow:
+            if np_.method == "engine" and np_.box is None and (self._n_shapes(np_.link1) > 1
+                                                               or self._n_shapes(np_.link2) > 1):
+                names = self._body_name(np_.link1), self._body_name(np_.link2)
+                raise ValueError(
+                    f"pair ({names[0]}, {names[1]}): a {np_.shape1.kind} against a {np_.shape2.kind} on a link of "
+                    "several collision shapes: its points come from pybullet's getClosestPoints, which answers for "
+                    "the whole link (every shape at once), so each shape's pair would take the others' points; "
+                    "supported on a compound link: a sphere on any of its primitives, a box on its boxes, a shape "
+                    "on a plane or on a fixed box whose face toward it is wide enough to be its floor "
+                    "(engines.pybullet.narrow.floor_face); else use pybullet's own contact for this link pair")
+
     def _shape(self, spec, label) -> _Shape:
         """The collision shape of a pair's body ``spec`` ((uid, link) or (uid,
         link, k)): from ``link_shapes`` if given for the link, else pybullet's
@@ -609,20 +653,27 @@ class PybulletAdapter(EngineAdapter):
                 raise ValueError(f"{label} {spec}: link_shapes entries must be engines.pybullet.narrow.LinkShape of "
                                  f"kind {', '.join(_SUPPORTED)}, got {shape!r}")
             return shape
-        if len(spec) == 3:
-            raise ValueError(f"{label} = {spec!r}: a shape index needs the link's shapes in link_shapes")
         data = pb.getCollisionShapeData(b[0], b[1], physicsClientId=self.client)
         if not data:
             raise ValueError(f"{label} {b}: pybullet reports no collision shape for it (getCollisionShapeData is "
                              "empty: a height field, or no collision shape); MSF needs the curvature at the contact: "
                              "give the link's shapes in link_shapes, or use pybullet's own contact for this pair")
-        if len(data) != 1:
-            raise ValueError(f"{label} {b}: has {len(data)} collision shapes; give them in link_shapes "
-                             "(engines.pybullet.narrow.LinkShape) and one pair per shape, (uid, link, k)")
-        _, _, gtype, dims, _, lpos, lorn = data[0]
+        if len(spec) == 3:  # one child of a compound shape (a URDF link with several <collision>), as pybullet reports it
+            k = int(spec[2])
+            if not 0 <= k < len(data):
+                raise ValueError(f"{label} {spec}: shape index {k} is outside [0, {len(data) - 1}] (pybullet reports "
+                                 f"{len(data)} collision shapes for the link)")
+        elif len(data) != 1:
+            kinds = ", ".join(f"{k}: {_SHAPE_NAMES.get(d[2], f'geometry type {d[2]}')}" for k, d in enumerate(data))
+            raise ValueError(f"{label} {b}: has {len(data)} collision shapes ({kinds}); give one pair per shape, "
+                             f"body (uid, link, k) for k in 0..{len(data) - 1} (read from pybullet), or the shapes in "
+                             "link_shapes (engines.pybullet.narrow.LinkShape)")
+        else:
+            k = 0
+        _, _, gtype, dims, _, lpos, lorn = data[k]
         kind = _SHAPE_NAMES.get(gtype, f"geometry type {gtype}")
         if kind not in _SUPPORTED:
-            raise ValueError(f"{label} {b}: collision shape {kind!r} has no curvature model (MSF needs the "
+            raise ValueError(f"{label} {spec}: collision shape {kind!r} has no curvature model (MSF needs the "
                              f"curvature at the contact); supported: {', '.join(_SUPPORTED)}; use pybullet's own "
                              "contact for this pair")
         vertices, margin = None, 0.0
@@ -634,7 +685,8 @@ class PybulletAdapter(EngineAdapter):
             size = np.array([dims[1], 0.5 * dims[0]])  # (height, radius) -> (radius, half-length)
         elif kind == "mesh":
             size = np.asarray(dims, dtype=float)  # the scale
-            vertices = np.asarray(pb.getMeshData(b[0], b[1], physicsClientId=self.client)[1], dtype=float)
+            vertices = np.asarray(pb.getMeshData(b[0], b[1], collisionShapeIndex=k if len(data) > 1 else -1,
+                                                 physicsClientId=self.client)[1], dtype=float)
             # a convex hull is inflated by its collision margin in getClosestPoints (engines.pybullet.narrow)
             margin = float(pb.getDynamicsInfo(b[0], b[1], physicsClientId=self.client)[11])
         else:
