@@ -143,6 +143,22 @@ _GEOM_NAMES = {
     mujoco.mjtGeom.mjGEOM_ELLIPSOID: "ellipsoid", mujoco.mjtGeom.mjGEOM_CYLINDER: "cylinder",
     mujoco.mjtGeom.mjGEOM_BOX: "box", mujoco.mjtGeom.mjGEOM_MESH: "mesh", mujoco.mjtGeom.mjGEOM_SDF: "sdf",
 }
+#: A box's corner contact (engines._narrow.BoxOnPlane, BoxOnBox) on a free
+#: body turning more than this [rad] per engine step, |omega| dt at the step
+#: start, is flagged and warned (:meth:`MujocoAdapter._check_fast_turns`): the
+#: sub-cycle holds the step-start geometry (the corner's lever arm and W, its
+#: normal velocity's change by the turn left to the next step's a_ext), and a
+#: corner moves through its contact by the turn. Measured (issue 13; a 1 kg
+#: box 0.10 x 0.06 x 0.04 m dropped from 0.2 m under Euler at dt = 5 and 10
+#: ms, spinning at 5, 15 and 25 rad/s about 10 random axes, natural rubber on
+#: steel, scripts/spin_drop.py): of 615 contact steps with |omega| dt below
+#: 0.15 none rose above dt/2 |dP_g| + 1e-3 of the energy by more than 1e-3 of
+#: the drop's energy; of 236 between 0.15 and 0.5, 16 did (up to 3.7 times
+#: it), and from 0.5 on 26 of 42. The gain spins the box up, and MuJoCo's Euler then integrates the
+#: fast tumble's gyroscopic term explicitly, which gains energy by itself:
+#: the box at 20 rad/s about (1, 1, 1) went from 24 to 89 rad/s in one corner
+#: contact (0.25 rad per step) and MuJoCo reset a NaN acceleration 45 steps later.
+BOX_TURN_PER_STEP_MAX = 0.15
 #: MuJoCo's divergence threshold on |qacc| (mjMAXVAL in mujoco/mjmodel.h).
 MJ_MAXVAL = 1e10
 #: A managed force explains a bad acceleration when its own estimate reaches
@@ -664,6 +680,12 @@ class MujocoAdapter(EngineAdapter):
                                   and not self._any_link)
         #: contacts found deep at their onset on a link (flagged; _check_deep_onsets, engines._contacts.balance)
         self._deep = DeepOnsets()
+        #: box corner contacts on a free body turning more than BOX_TURN_PER_STEP_MAX a step (_check_fast_turns)
+        self._box_free = np.array([q.narrow in self._box and not self._link_pairs[q.index] for q in self._pairs],
+                                  dtype=bool).reshape(P)
+        self.fast_turns = 0  #: such contacts, flagged (each once)
+        self._turn_flagged: dict[int, float] = {}
+        self._turn_warned: set[int] = set()
         if model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_SLEEP:
             warnings.warn("MuJoCo's sleeping islands are enabled (<flag sleep=\"enable\"/>): the MSF adapter does "
                           "not support them; a body put to sleep or woken inside a step reads as a jump (its MSF "
@@ -1163,6 +1185,41 @@ class MujocoAdapter(EngineAdapter):
         self._narrow_key, self._narrow_found = key, out
         return out
 
+    def _check_fast_turns(self, t0: float) -> None:
+        """Never silent: a box's corner contact on a free body (in progress or
+        begun in the step from t0) whose body turns more than
+        BOX_TURN_PER_STEP_MAX per step at this step's start is flagged in its
+        outside_validity (each contact once) and warned once per pair, in the
+        step: the energy such contacts gain (see the constant) comes in the
+        same step, and the blow-up after it. ``fast_turns`` counts them."""
+        if not self._box_free.any():
+            return
+        mgr, d, dt = self.manager, self.data, self.timestep
+        began = (mgr.x_max > 0.0) & (mgr.t_onset >= t0) & (mgr.t_onset < t0 + dt)  # and ended in the step
+        on = self._box_free & (mgr.active | began)
+        for p in np.flatnonzero(on).tolist():
+            t_on = float(mgr.t_onset[p])
+            if self._turn_flagged.get(p) == t_on:
+                continue
+            q = self._pairs[p]
+            w, b = max((float(np.linalg.norm(d.cvel[b, :3])), b) for b in (q.body1, q.body2)
+                       if int(self.model.body_weldid[b]) != 0)
+            if w * dt <= BOX_TURN_PER_STEP_MAX:
+                continue
+            self._turn_flagged[p] = t_on
+            self.fast_turns += 1
+            name = self.model.body(b).name or f"body {b}"
+            note = (f"fast turn: {name} turns |omega| dt = {w * dt:.3g} rad per engine step in a corner contact "
+                    f"(|omega| = {w:.4g} rad/s, dt = {dt:g} s), above {BOX_TURN_PER_STEP_MAX:g}: the sub-cycle holds "
+                    f"the step-start corner geometry, and such contacts gained up to several times the body's energy "
+                    f"(MuJoCo's Euler then integrating the fast tumble explicitly may blow up); take dt <= "
+                    f"{BOX_TURN_PER_STEP_MAX / w:.3g} s (or a slower spin)")
+            mgr.flag_contact(p, note, t_on)
+            if p not in self._turn_warned:
+                self._turn_warned.add(p)
+                warnings.warn(f"pair {p} {self.pair_names[p]}: {note} (warned once per pair; adapter.fast_turns "
+                              "counts them)", ValidityWarning, stacklevel=5)
+
     def _check_deep_onsets(self, t0: float) -> None:
         """Never silent: a contact from MuJoCo's narrow phase (its point has
         no closed form behind it: a mesh's point was found 23.6 mm deep at a
@@ -1381,6 +1438,7 @@ class MujocoAdapter(EngineAdapter):
         kin = self._assemble(blocks)
         kin.lever = self._lever(kin)
         out: ContactForces = self.manager.step(self._mask(kin))
+        self._check_fast_turns(float(d.time))
         self._last_kin, self._last_out = kin, out
         Qc = self._couples(out)
         if self._shared:
@@ -1493,6 +1551,7 @@ class MujocoAdapter(EngineAdapter):
         kin.lever = self._lever(kin)
         out: ContactForces = mgr.step(self._mask(kin))
         self._check_deep_onsets(float(d.time))
+        self._check_fast_turns(float(d.time))
         self._last_kin, self._last_out = kin, out
         Qc = self._couples(out)
         if self._shared:
