@@ -76,18 +76,24 @@ class ConvexMesh:
             raise AttributeError(name)
         return getattr(self.mesh, name)
 
-#: A mesh whose convex hull has a flat face (coplanar hull facets holding at
-#: least 4 vertices) wider than this share of its bounding radius can rest
-#: on that face, and the engines give one point of it (pybullet's
+#: A mesh whose convex hull has a flat face (a hull triangle, or coplanar
+#: hull facets merged) wider than this share of its bounding radius can
+#: rest on that face, and the engines give one point of it (pybullet's
 #: getClosestPoints) or its vertices (MuJoCo): its default number of slots
 #: is COARSE_MESH_SLOTS, as a box's corners, not 1. With one slot the
 #: point jumps between the face's vertices during a contact: pybullet_data's
 #: duck_vhacd.obj (its flat face 41.5 mm on a 57 mm bounding radius) rocking
 #: on that face had its point jump 30-40 mm within a contact and records
-#: flagged "energy gained in a contact" (COR 1.4-2.1); with 4 none. A smooth
-#: mesh (an icosphere: every hull face a triangle) keeps 1: its bottom
-#: vertices are samples of one contact (several would each carry the
-#: sphere's whole law).
+#: flagged "energy gained in a contact" (COR 1.4-2.1); with 4 none. A lone
+#: hull triangle counts as much as a face of several (pybullet_data's
+#: teddy2_VHACD_CHs.obj: 132 hull vertices, triangles up to 0.72 m on a
+#: 0.85 m bounding radius, no 4 coplanar: it rests on such triangles, whose
+#: vertices are its contacts, docs/engines.md). A smooth mesh (an
+#: icosphere of 162 or more vertices, its hull triangles at most 0.33 of
+#: its radius) keeps 1: its bottom vertices are samples of one contact
+#: (several would each carry the sphere's whole law), carried at the
+#: smooth surface's point (:func:`smooth_point`). The 42-vertex icosphere
+#: (edges up to 0.62 r) is a polyhedron here: 4.
 FLAT_FACE_SHARE = 0.5
 COARSE_MESH_SLOTS = 4
 #: Hull facets whose plane equations (unit normal, offset over the bounding
@@ -95,11 +101,12 @@ COARSE_MESH_SLOTS = 4
 COPLANAR_TOL = 1e-5
 
 
-def flat_face(vertices) -> tuple[float, np.ndarray | None]:
-    """The widest flat face of the convex hull of ``vertices`` [m] (n, 3):
+def flat_face(vertices, corners: int = 4) -> tuple[float, np.ndarray | None]:
+    """The widest flat face of the convex hull of ``vertices`` [m] (n, 3)
+    among those of at least ``corners`` vertices (3: a hull triangle counts):
     (its width [m], the largest distance between two of its vertices; its
-    outward unit normal (3,)), a face being coplanar hull facets with at
-    least 4 vertices; (0, None) when every face is a triangle."""
+    outward unit normal (3,)), a face being coplanar hull facets merged
+    (COPLANAR_TOL); (0, None) when there is none."""
     from scipy.spatial import ConvexHull
 
     V = np.asarray(vertices, dtype=float).reshape(-1, 3)
@@ -113,7 +120,7 @@ def flat_face(vertices) -> tuple[float, np.ndarray | None]:
         normal[k] = eq[:3]
     best, n = 0.0, None
     for k, verts in faces.items():
-        if len(verts) >= 4:
+        if len(verts) >= corners:
             P = V[sorted(verts)]
             w = float(np.max(np.linalg.norm(P[:, None, :] - P[None, :, :], axis=2)))
             if w > best:
@@ -123,14 +130,88 @@ def flat_face(vertices) -> tuple[float, np.ndarray | None]:
 
 def default_mesh_slots(vertices) -> int:
     """The contact slots of a mesh geom given no ``mesh_slots`` [-]:
-    COARSE_MESH_SLOTS when its hull has a flat face wider than
-    FLAT_FACE_SHARE of its bounding radius (:func:`flat_face`; vertices [m]
-    (n, 3) in the geom's frame), else 1."""
+    COARSE_MESH_SLOTS when its hull has a flat face, a triangle or more,
+    wider than FLAT_FACE_SHARE of its bounding radius (:func:`flat_face`;
+    vertices [m] (n, 3) in the geom's frame), else 1."""
     V = np.asarray(vertices, dtype=float).reshape(-1, 3)
     if V.shape[0] < 4:
         return 1
     r = float(np.max(np.linalg.norm(V, axis=1)))
-    return COARSE_MESH_SLOTS if flat_face(V)[0] > FLAT_FACE_SHARE * r else 1
+    return COARSE_MESH_SLOTS if flat_face(V, 3)[0] > FLAT_FACE_SHARE * r else 1
+
+
+#: The farthest a mesh's point is moved to the smooth surface it stands for
+#: [m] (:func:`smooth_point`): a facet's sagitta (0.09 mm on a 642-vertex
+#: icosphere of R 30 mm); a larger move is a fit the vertices do not
+#: support (a wheel's hull gave a support point 1,024 m out), and the vertex
+#: is kept. pybullet's getClosestPoints is asked this much further.
+SMOOTH_REACH = 1e-3
+
+
+def smooth_point(geom, pos, rot, point, outward) -> tuple[np.ndarray, float]:
+    """A mesh's contact point moved from the vertex the engine found to the
+    smooth convex surface the mesh stands for, and how far it moved outward
+    along ``outward`` [m] (the approach grows by it): the fitted surface's
+    point with that outward normal (:meth:`msf_contact.shapes.Mesh.support`,
+    through ConvexMesh), or the exact point of an analytic surface given as
+    the mesh's curvature (``point_of_normal``, pybullet's ellipsoid); any
+    other shape, a move beyond SMOOTH_REACH, or a fit that does not
+    determine the point: ``point`` as it is, 0. pos [m] (3,), rot (3, 3):
+    the geom's frame in the world; point [m] (3,) on the geom's surface,
+    outward (3,) its outward unit normal there, world axes.
+
+    Why (issue 13): a faceted mesh touches a plane at a vertex, and as the
+    body rolls the deepest vertex jumps by up to an edge (3-4 mm on a
+    642-vertex icosphere of R 30 mm) while the smooth surface's point moves
+    continuously under the centre of curvature; a contact carried at the
+    jumping vertex changes its material point within the contact (the
+    finite-difference a_ext of that step compares two points' velocities:
+    60-75 m/s^2 at a rolling jump, MuJoCo) and its approach by the jump's
+    depth difference, which the contact's own x never sees.
+
+    The fit is made twice, the second centred on the first's point: fitted
+    about a vertex 3.5 mm off the bottom (MuJoCo's point at a one-slot
+    contact can lag so far) the stationary point lies at the patch's edge
+    and is off by up to 0.37 mm along the surface and 37 um in depth (a
+    sawtooth in x at every change of vertex); centred, within 1.9 um and
+    0.9 um of the sphere's bottom from any of the 7 deepest vertices
+    (300 random orientations of the 642-vertex icosphere)."""
+    if not (hasattr(geom, "support") or hasattr(geom, "point_of_normal")):
+        return np.asarray(point, dtype=float), 0.0
+    rot = np.asarray(rot, dtype=float).reshape(3, 3)
+    pos, point = np.asarray(pos, dtype=float), np.asarray(point, dtype=float)
+    local, out = rot.T @ (point - pos), rot.T @ np.asarray(outward, dtype=float)
+    if hasattr(geom, "support"):
+        q, _ = geom.support(local, out)
+        if np.any(q != local):  # once more, the fit centred on the point found (below)
+            q, _ = geom.support(q, out)
+    else:
+        q = geom.point_of_normal(out)
+    w = float((q - local) @ out)
+    if not abs(w) <= SMOOTH_REACH:
+        return point, 0.0
+    return pos + rot @ q, w
+
+
+def smooth_contact(geom1, pose1, geom2, pose2, x: float, point, normal) -> tuple[float, np.ndarray]:
+    """An engine's contact (approach x [m], ``point`` [m] (3,) midway between
+    the surfaces, unit ``normal`` (3,) from body 2 to body 1) with each mesh
+    side's point moved to its smooth surface (:func:`smooth_point`): (the
+    approach grown by both moves [m], the new midpoint [m] (3,)). Each
+    side's tangential move is given to the other side's point too, so the
+    two stay on one line along the normal (a plane: exact; a curved other
+    body: to first order in the move). pose: (pos (3,), rot (3, 3)) of each
+    geom's frame."""
+    n = np.asarray(normal, dtype=float)
+    p = np.asarray(point, dtype=float)
+    p1, p2 = p - 0.5 * x * n, p + 0.5 * x * n  # each body's own surface point
+    q1, w1 = smooth_point(geom1, *pose1, p1, -n)
+    q2, w2 = smooth_point(geom2, *pose2, p2, n)
+    if w1 == 0.0 and w2 == 0.0:
+        return float(x), p
+    t1, t2 = q1 - p1, q2 - p2
+    t1, t2 = t1 - (t1 @ n) * n, t2 - (t2 @ n) * n
+    return float(x + w1 + w2), 0.5 * ((q1 + t2) + (q2 + t1))
 
 
 #: A point of the engine's list continues a slot when it is within this

@@ -21,12 +21,19 @@ from engines.base import PairSpec
 
 
 def test_a_hull_with_a_flat_face_takes_several_slots_a_smooth_mesh_one():
-    """An icosphere (every hull face a triangle) one slot; a box mesh (its
-    faces 4 coplanar vertices, as wide as 1.4 its half-diagonal) and a
-    32-sided prism (its caps) COARSE_MESH_SLOTS; the flat face found is the
-    box's widest, its diagonal."""
-    for sub in (1, 3):
+    """An icosphere of 162 or 642 vertices (hull triangles at most 0.33 and
+    0.17 of its radius) one slot; a box mesh (its faces 4 coplanar vertices,
+    as wide as 1.4 its half-diagonal) and a 32-sided prism (its caps)
+    COARSE_MESH_SLOTS; the flat face found is the box's widest, its
+    diagonal. A lone hull triangle wider than FLAT_FACE_SHARE of the radius
+    counts as a face (pybullet_data's teddy2_VHACD_CHs.obj: triangles of
+    0.72 m on 0.85 m, no 4 coplanar): the icosahedron and the 42-vertex
+    icosphere (edges 1.05 and 0.62 r) take COARSE_MESH_SLOTS."""
+    for sub in (2, 3):
         assert default_mesh_slots(trimesh.creation.icosphere(subdivisions=sub, radius=0.02).vertices) == 1
+    for sub in (0, 1):
+        V = trimesh.creation.icosphere(subdivisions=sub, radius=0.02).vertices
+        assert flat_face(V)[0] == 0.0 and default_mesh_slots(V) == COARSE_MESH_SLOTS
     box = trimesh.creation.box([0.02, 0.03, 0.04])
     width, normal = flat_face(box.vertices)
     assert width == pytest.approx(math.hypot(0.03, 0.04)) and abs(abs(normal[0]) - 1.0) < 1e-9

@@ -114,6 +114,7 @@ from engines._contacts.balance import DeepOnsets
 from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_plane, sphere_sphere
 from engines._sweep import sweep
+from engines._narrow import smooth_contact
 from engines.base import (
     STEPS_PER_CONTACT_MIN,
     ContactForces,
@@ -170,8 +171,9 @@ _SECOND = ("sphere", "plane", "box")
 _NARROW = ("sphere", "plane", "box", "capsule", "cylinder", "ellipsoid", "mesh")
 #: Points managed per geom pair from MuJoCo's narrow phase (its deepest ones
 #: when it lists more): a box face or a cylinder end on a plane gives 4, a
-#: capsule 2. A mesh is one smooth convex surface: its deepest point only
-#: (its vertices near the bottom are samples of one contact, not contacts);
+#: capsule 2. A mesh is one smooth convex surface: one contact, at the smooth
+#: surface's point found from its deepest vertex (engines._narrow.smooth_point;
+#: its vertices near the bottom are samples of one contact, not contacts);
 #: a coarse hull whose vertices are contacts, as a box's corners are (the
 #: duck_vhacd.obj hull rolls from vertex to vertex: with one slot a new vertex
 #: already below the plane took the slot as a deep onset, COR 22 in a step),
@@ -1164,6 +1166,16 @@ class MujocoAdapter(EngineAdapter):
         out = []
         for k, ((g1, g2, s1, s2, match), (x, pts, nrm)) in enumerate(zip(self._narrow_pairs, raw)):
             first = next(q.index for q in self._pairs if q.narrow == k)
+            if match.n == 1 and x.size and (s1 is not None and hasattr(s1, "support")
+                                            or s2 is not None and hasattr(s2, "support")):
+                # a smooth mesh's one contact: the smooth surface's point, not the deepest vertex's
+                # (engines._narrow.smooth_point)
+                # from the deepest of MuJoCo's points (several vertices of one contact), as one point
+                j = int(np.argmax(x))
+                xj, pj = smooth_contact(s1, (d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3)),
+                                        s2, (d.geom_xpos[g2], d.geom_xmat[g2].reshape(3, 3)), float(x[j]), pts[j],
+                                        nrm[j])
+                x, pts, nrm = np.array([xj]), pj[None], nrm[j:j + 1]
             rot1 = d.geom_xmat[g1].reshape(3, 3)
             local = (pts - d.geom_xpos[g1]) @ rot1
             if k in self._box:

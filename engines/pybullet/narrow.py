@@ -59,7 +59,8 @@ from dataclasses import dataclass, field
 import numpy as np
 import pybullet as pb
 
-from engines._narrow import Plane, SlotMatcher, make_shape
+from engines._narrow import SMOOTH_REACH, Plane, SlotMatcher, make_shape
+from engines._narrow import smooth_contact
 from msf_contact.curvature import tangent_basis
 
 #: Shapes this module finds contacts for (with the analytic sphere pairs of
@@ -459,42 +460,14 @@ def detect(np_: NarrowPair, pose1, pose2, reach: float, client: int):
     n = np.array([r[7] for r in rows], dtype=float)
     pa = np.array([r[5] for r in rows], dtype=float) + s1.margin * n  # A's surface inside its margin
     pb_ = np.array([r[6] for r in rows], dtype=float) - s2.margin * n
-    for k in range(x.size):  # a mesh's vertex -> the smooth surface it stands for
-        pa[k], w1 = smooth_point(np_.geom1, s1, (c1, R1), pa[k], -n[k])
-        pb_[k], w2 = smooth_point(np_.geom2, s2, (c2, R2), pb_[k], n[k])
-        x[k] += w1 + w2
+    mid = 0.5 * (pa + pb_)
+    g1 = np_.geom1 if s1.kind == "mesh" else None  # a mesh's vertex -> the smooth surface it stands for
+    g2 = np_.geom2 if s2.kind == "mesh" else None
+    if g1 is not None or g2 is not None:
+        for k in range(x.size):
+            x[k], mid[k] = smooth_contact(g1, (c1, R1), g2, (c2, R2), x[k], mid[k], n[k])
     keep = x > -reach
-    return x[keep], 0.5 * (pa + pb_)[keep], n[keep]
-
-
-#: Extra getClosestPoints reach [m] for the smooth surface of a mesh, which
-#: lies up to a facet's sagitta beyond its vertices.
-SMOOTH_REACH = 1e-3
-
-
-def smooth_point(geom, shape: LinkShape, frame, point, outward):
-    """A mesh shape's point moved from the vertex pybullet found to the smooth
-    surface the mesh stands for (msf_contact.shapes.Mesh.support: the fitted
-    surface; an Ellipsoid given as the mesh's curvature: its exact point with
-    that normal), and the distance it moved outward [m]; other shapes: as they
-    are. A move of more than SMOOTH_REACH either way is no facet's sagitta
-    (getClosestPoints was asked that far beyond the vertices) but a fit the
-    vertices do not support: the vertex is kept. frame: the shape's (origin,
-    rotation) in the world; point (3,), outward (3,) world."""
-    if shape.kind != "mesh":
-        return point, 0.0
-    pos, rot = frame
-    local, out = rot.T @ (point - pos), rot.T @ outward
-    if hasattr(geom, "support"):
-        q, _ = geom.support(local, out)
-    elif hasattr(geom, "point_of_normal"):
-        q = geom.point_of_normal(out)
-    else:
-        return point, 0.0
-    w = float((q - local) @ out)
-    if not abs(w) <= SMOOTH_REACH:
-        return point, 0.0
-    return pos + rot @ q, w
+    return x[keep], mid[keep], n[keep]
 
 
 __all__ = ["LinkShape", "NarrowPair", "NARROW_KINDS", "NARROW_SLOTS", "as_cylinder", "assign_plane_slots", "detect",
