@@ -111,7 +111,8 @@ def _overlap(a, b, c, d):
 
 @jit_inline
 def _ring_parts(lc, x):
-    """(2 rho0, arc) [m] of a RimArcLaw slot at x > 0 [m] (engines._narrow.RimArcLaw._width_one)."""
+    """(2 rho0, arc) [m] of a RimArcLaw slot at x >= 0 [m], at x = 0 its right limit
+    (engines._narrow.RimArcLaw._width_one)."""
     e, Q, h, c, psi = lc[LC_SE], lc[LC_SRW], lc[LC_SL], lc[LC_SDROP], lc[LC_SRISE]
     rho0 = math.sqrt(max(x * (2.0 * e - x), 0.0))
     x0 = x + c * (1.0 - math.cos(psi))  # the rim's lowest point
@@ -125,10 +126,10 @@ def _ring_parts(lc, x):
 @jit_inline
 def _side_parts(lc, x):
     """(w a, b) [m] of a SideEndLaw end at x >= 0 [m] (engines._narrow.SideEndLaw._width_one)."""
+    if lc[LC_SRING] != 0.0:  # the ring's W at x = 0 is its right limit (RimArcLaw)
+        return _ring_parts(lc, max(x, 0.0))
     if x <= 0.0:
         return 0.0, 0.0
-    if lc[LC_SRING] != 0.0:
-        return _ring_parts(lc, x)
     e, L, rise = lc[LC_SE], lc[LC_SL], lc[LC_SRISE]
     a = 2.0 * math.sqrt(max(x * (2.0 * lc[LC_SRW] - x), 0.0))
     rho0 = math.sqrt(max(x * (2.0 * e - x), 0.0))

@@ -134,8 +134,8 @@ class SideFootprint:
         rho0 = np.sqrt(np.maximum(x * (2.0 * R - x), 0.0))  # R^2 - h0^2 without cancellation
         if self.caps != "rounded":
             a = 2.0 * rho0
-        if self.caps == "flat":
-            return a, np.where(x > 0.0, L, 0.0)
+        if self.caps == "flat":  # at x = 0 its right limit, as the other caps': a contact in progress there
+            return a, np.full(x.shape, float(L))  # carries its touch-down width (docs/theory.md 2a)
         if th == 0.0:
             return a, 2.0 * rho0 + L
         s_t, c_t = math.sin(th), math.cos(th)

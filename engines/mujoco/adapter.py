@@ -160,6 +160,18 @@ _GEOM_NAMES = {
 #: the box at 20 rad/s about (1, 1, 1) went from 24 to 89 rad/s in one corner
 #: contact (0.25 rad per step) and MuJoCo reset a NaN acceleration 45 steps later.
 BOX_TURN_PER_STEP_MAX = 0.15
+#: A cylinder's rim ring in contact (engines._narrow.CylinderOnPlane, RimRing)
+#: whose lowest rim point lies an angle D from its nearest slot sinks up to
+#: c (1 - cos D) below what the slots carry (c = Q sin(tilt), the ring's
+#: drop across its diameter / 2: the slots keep their material points while
+#: any is in contact, and each law keeps its pose while its contact moves);
+#: above this share of the edge radius the contacts are flagged and warned
+#: (:meth:`MujocoAdapter._check_ring_sink`): the small-strain bound x/rho = 0.1
+#: of the rim tube, against static overlaps of um. Measured (issue 13): the
+#: user's cylinder (R 50 mm, rho 1 mm, 0.1 kg) set on its rim 40 deg from the
+#: normal, spun at 15 rad/s: at 16 deg its lowest point 44.7 deg from the
+#: nearest slot lay 4.0 mm deep (c (1 - cos D) = 3.98 mm).
+RING_SINK_MAX = 0.1
 #: MuJoCo's divergence threshold on |qacc| (mjMAXVAL in mujoco/mjmodel.h).
 MJ_MAXVAL = 1e10
 #: A managed force explains a bad acceleration when its own estimate reaches
@@ -686,6 +698,9 @@ class MujocoAdapter(EngineAdapter):
         self._box_free = np.array([q.narrow in self._box and not self._link_pairs[q.index] for q in self._pairs],
                                   dtype=bool).reshape(P)
         self.fast_turns = 0  #: such contacts, flagged (each once)
+        self.ring_sinks = 0  #: rim-ring contacts flagged for a lowest point between slots (_check_ring_sink)
+        self._sink_flagged: dict[int, float] = {}
+        self._sink_warned: set[int] = set()
         self._turn_flagged: dict[int, float] = {}
         self._turn_warned: set[int] = set()
         if model.opt.enableflags & mujoco.mjtEnableBit.mjENBL_SLEEP:
@@ -1232,6 +1247,52 @@ class MujocoAdapter(EngineAdapter):
                 warnings.warn(f"pair {p} {self.pair_names[p]}: {note} (warned once per pair; adapter.fast_turns "
                               "counts them)", ValidityWarning, stacklevel=5)
 
+    def _check_ring_sink(self) -> None:
+        """Never silent: a cylinder's rim ring in contact whose lowest rim
+        point lies an angle D from the nearest of its slots, with c (1 - cos
+        D) above RING_SINK_MAX of the edge radius (c = Q sin(tilt),
+        engines._narrow.RimArcLaw), flags its slots' contacts in progress
+        (each once) and warns once per pair: the ring there sinks up to that
+        depth. ``ring_sinks`` counts the flagged contacts."""
+        from engines._narrow import CylinderOnPlane
+
+        mgr = self.manager
+        for k, st in self._line.items():
+            if not isinstance(st, CylinderOnPlane) or st.mode != "ring":
+                continue
+            ring = st.ring
+            rim = getattr(ring, "rim", None)
+            if rim is None or not math.isfinite(rim.lowest_angle):
+                continue
+            first = next(q.index for q in self._pairs if q.narrow == k)
+            slots = np.arange(first, first + ring.n)
+            on = slots[mgr.active[slots]]
+            if on.size == 0:
+                continue
+            D = float(np.min(np.abs(np.remainder(ring.angle - rim.lowest_angle + math.pi, 2 * math.pi) - math.pi)))
+            shape = ring.shape
+            s_t = math.sin(rim.tilt)
+            c = (shape.radius - shape.edge_radius + shape.edge_radius * s_t) * s_t
+            sink = c * (1.0 - math.cos(D))
+            if sink <= RING_SINK_MAX * shape.edge_radius:
+                continue
+            note = (f"ring sink: the rim's lowest point lies {math.degrees(D):.3g} deg from the nearest of the "
+                    f"ring's {ring.n} slots (tilt {math.degrees(rim.tilt):.3g} deg): the ring there sinks up to "
+                    f"c (1 - cos D) = {sink:.3g} m, above {RING_SINK_MAX:g} of the edge radius {shape.edge_radius:g} m "
+                    "(the slots keep their material points while any is in contact: a cylinder rolling on its rim); "
+                    "not corrected")
+            for p in on.tolist():
+                t_on = float(mgr.t_onset[p])
+                if self._sink_flagged.get(p) == t_on:
+                    continue
+                self._sink_flagged[p] = t_on
+                self.ring_sinks += 1
+                mgr.flag_contact(p, note, t_on)
+            if first not in self._sink_warned:
+                self._sink_warned.add(first)
+                warnings.warn(f"pair {first} {self.pair_names[first]}: {note} (warned once per pair; "
+                              "adapter.ring_sinks counts them)", ValidityWarning, stacklevel=5)
+
     def _check_deep_onsets(self, t0: float) -> None:
         """Never silent: a contact from MuJoCo's narrow phase (its point has
         no closed form behind it: a mesh's point was found 23.6 mm deep at a
@@ -1451,6 +1512,8 @@ class MujocoAdapter(EngineAdapter):
         kin.lever = self._lever(kin)
         out: ContactForces = self.manager.step(self._mask(kin))
         self._check_fast_turns(float(d.time))
+        if self._line:
+            self._check_ring_sink()
         self._last_kin, self._last_out = kin, out
         Qc = self._couples(out)
         if self._shared:
@@ -1564,6 +1627,8 @@ class MujocoAdapter(EngineAdapter):
         out: ContactForces = mgr.step(self._mask(kin))
         self._check_deep_onsets(float(d.time))
         self._check_fast_turns(float(d.time))
+        if self._line:
+            self._check_ring_sink()
         self._last_kin, self._last_out = kin, out
         Qc = self._couples(out)
         if self._shared:
