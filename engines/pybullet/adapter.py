@@ -924,8 +924,9 @@ class PybulletAdapter(EngineAdapter):
                      np.asarray(frame, float))
 
     def _multibody(self, uid) -> list:
-        """[q, qd, M^-1 or None] of a multibody's movable joints at this step
-        (read once per step: a robot's contacts share them)."""
+        """[q, qd, M^-1 or None, the base's rotation (3, 3)] of a multibody's
+        movable joints at this step (read once per step: a robot's contacts
+        share them), and once computed, [4] the torques' dq (_torque_dq)."""
         cache = self._mb_cache
         if cache.get("step") != self._steps:
             cache.clear()
@@ -936,7 +937,9 @@ class PybulletAdapter(EngineAdapter):
                 self._movable[uid] = [j for j in range(pb.getNumJoints(uid, physicsClientId=c))
                                       if pb.getJointInfo(uid, j, physicsClientId=c)[2] != pb.JOINT_FIXED]
             states = pb.getJointStates(uid, self._movable[uid], physicsClientId=c) if self._movable[uid] else []
-            cache[uid] = [[s[0] for s in states], [s[1] for s in states], None]
+            # the base's orientation: calculateJacobian answers in the base's frame (_jacobian)
+            rot = _mat(pb.getBasePositionAndOrientation(uid, physicsClientId=c)[1])
+            cache[uid] = [[s[0] for s in states], [s[1] for s in states], None, rot]
         return cache[uid]
 
     def _joint_state(self, uid):
@@ -1015,12 +1018,12 @@ class PybulletAdapter(EngineAdapter):
         if np.array_equal(tau, last):
             return None
         mb = self._multibody(uid)
-        if len(mb) < 4:
+        if len(mb) < 5:
             base = 0 if self._base_fixed(uid) else 6
             gen = np.zeros(base + tau.size)
             gen[base:] = tau - last
             mb.append(self._minv(uid) @ gen)
-        return mb[3]
+        return mb[4]
 
     def _limits_engaged(self) -> None:
         """A joint stopped at a limit of its range within the last step was
@@ -1149,7 +1152,7 @@ class PybulletAdapter(EngineAdapter):
             for u in changed:
                 self._engaged[u] = held[u]
                 mb = self._multibody(u)
-                del mb[3:]
+                del mb[4:]
                 mb[2] = None  # M^-1 with the new held joints (_minv), the torque change through it (_torque_dq)
             kp = np.asarray(kin.pair, int)
             for r, i in enumerate(kp.tolist()):
@@ -1271,7 +1274,12 @@ class PybulletAdapter(EngineAdapter):
         # (bulletphysics/bullet3 #4668; checked in tests/test_pybullet.py against the hinge inertia)
         local = pose.rot.T @ (point - pose.frame)
         Jt, _ = pb.calculateJacobian(uid, link, local.tolist(), q, qd, [0.0] * len(q), physicsClientId=self.client)
-        return np.asarray(Jt, float).reshape(3, -1)
+        # ... and it answers in the base's frame, a floating base's six velocities too (its angular then linear
+        # velocity in the base's axes, as calculateMassMatrix's coordinates): the point's world velocity is
+        # R_base J [R_base^T w; R_base^T v; qd] (measured on pybullet 3.2.7: cartpole.urdf with its fixed base
+        # turned, ant.xml and humanoid.xml with the torso turned; tests/test_robots_pybullet.py). So the world
+        # Jacobian of the coordinates pybullet's M uses is R_base J; W = R J M^-1 J^T R^T.
+        return self._multibody(uid)[3] @ np.asarray(Jt, float).reshape(3, -1)
 
     def _mass_matrix(self, uid):
         q, _ = self._joint_state(uid)
