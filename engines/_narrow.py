@@ -1736,12 +1736,26 @@ class BoxOnBox:
 
     Edges crossing edges (the best separating axis a cross product of two
     edges, by more than the tie) are one contact, slot 0, the crossing of
-    the two rounded edges (:meth:`_crossing`), held the same way. Stated
-    approximations: the face is taken as an unbounded plane (as
-    :func:`face_toward` takes a fixed box's face): a corner of the upper
-    box past the lower box's face (a box turned on another, overhanging) is
-    carried as if the face went on; and while one choice's contact lasts
-    the other features are not looked at.
+    the two rounded edges (:meth:`_crossing`), held the same way.
+
+    The face is bounded (issue 13; :meth:`_bounded`): a corner whose lowest
+    point's foot on the face's plane lies beyond the face's edge touches
+    nothing there; its slot is carried at the face's nearest point under
+    the corners' box's own face instead (the foot clamped into the face's
+    rectangle, raised or lowered onto the plane of the corners' box's face
+    through the corner): a vertex of the two faces' overlap where the face
+    box's edge or corner meets the other box's face. An upper box set flat
+    over the lower one's edge, its centre 20 mm off, rests on its two
+    corners over the face and on the face's edge at its two ends, the
+    overlap's corners; a point that falls outside the corners' box's face
+    (the two faces do not overlap there) gives no point (None: a gap).
+    Before, the face was an unbounded plane (as :func:`face_toward` still
+    takes a fixed box's face) and such an upper box stood on two corners in
+    the air, the edge under it carrying nothing. Stated approximations: a
+    moved slot keeps its corner's edge law and pose; the overlap's other
+    vertices (its edges crossing, with a turn between the boxes) are not
+    slots of their own; and while one choice's contact lasts the other
+    features are not looked at.
 
     shape1, shape2: :class:`msf_contact.shapes.Box` of body 1 and body 2;
     names: their names; n_slots: the corners managed (4: a face)."""
@@ -1767,6 +1781,9 @@ class BoxOnBox:
         #: the crossing's (x [m], point [m] (3,), normal (3,)) at the last update, and its law
         self.cross = None
         self.cross_law = None
+        #: per slot at the last update: None (its corner over the face), or the corner moved onto the face's
+        #: edge (:meth:`_bounded`): (x [m], point [m] (3,) on the corners' box's face) or False (no overlap)
+        self.moved: list = [None] * self.n
 
     @property
     def box(self) -> BoxOnPlane:
@@ -1852,6 +1869,7 @@ class BoxOnBox:
         if not np.any(busy):
             self.choose(pos1, rot1, pos2, rot2, up)
         if self.crossing:
+            self.moved = [None] * self.n
             if before[2] is not True:
                 self.on[1].corner[:] = -1
                 self.on[2].corner[:] = -1
@@ -1860,11 +1878,47 @@ class BoxOnBox:
         cpos, crot, fpoint, n_face = self._frame(pos1, rot1, pos2, rot2)
         changed = self.box.update(cpos, crot, fpoint, n_face, busy, template, bank)
         self.normal = n_face if self.which == 1 else -n_face
+        self._bounded(pos1, rot1, pos2, rot2, n_face)
         if (self.which, self.face, self.crossing) != before:
             other = self.on[3 - self.which]
             other.corner[:] = -1
             changed = np.ones(self.n, bool)
         return changed
+
+    def _bounded(self, pos1, rot1, pos2, rot2, n_face) -> None:
+        """:attr:`moved` of each slot at these poses (class docstring): a
+        corner whose lowest point's foot lies beyond the face (the face box's
+        half-extents along its two other axes) is moved to the foot clamped
+        into the face, taken onto the plane through the corner's lowest point
+        normal to the corners' box's axis most against the face normal
+        (x: that point's depth below the face's plane [m]); False when that
+        point lies outside the corners' box's face (its half-extents)."""
+        pose = {1: (np.asarray(pos1, float), np.asarray(rot1, float).reshape(3, 3)),
+                2: (np.asarray(pos2, float), np.asarray(rot2, float).reshape(3, 3))}
+        cpos, crot = pose[self.which]
+        fpos, frot = pose[3 - self.which]
+        k, sign = self.face
+        hf = np.asarray(self.shapes[3 - self.which].half_extents, dtype=float)
+        hc = np.asarray(self.shapes[self.which].half_extents, dtype=float)
+        j = int(np.argmax(np.abs(crot.T @ n_face)))  # the corners' box's face against this one
+        n_own = crot[:, j] * (-1.0 if float(crot[:, j] @ n_face) > 0.0 else 1.0)  # its outward normal
+        c = self.box.corners
+        self.moved = [None] * self.n
+        for s_, corner in enumerate(self.box.corner):
+            if corner < 0:
+                continue
+            low = c.lowest[int(corner)]
+            local = frot.T @ (low - fpos)
+            clamped = np.clip(local, -hf, hf)
+            clamped[k] = sign * hf[k]
+            if np.all(np.abs(local - clamped)[[i for i in range(3) if i != k]] == 0.0):
+                continue  # over the face
+            q = fpos + frot @ clamped  # on the face's plane
+            t = float((low - q) @ n_own) / float(n_face @ n_own)  # q + t n_face on the corners' box's face
+            p = q + t * n_face
+            own = crot.T @ (p - cpos)
+            inside = all(abs(own[i]) <= hc[i] for i in range(3) if i != j)
+            self.moved[s_] = (-t, p) if inside else False
 
     def _crossing(self, pos1, rot1, pos2, rot2, busy, template, bank, t) -> None:
         """Slot 0 as the crossing of the two rounded edges (:attr:`edges`,
@@ -1895,7 +1949,11 @@ class BoxOnBox:
         """BoxOnPlane.points of the corners in use [m] (n, 3) (crossing edges: the crossing's point)."""
         if self.crossing:
             return np.tile(self.cross[1], (self.n, 1))
-        return self.box.points()
+        pts = self.box.points().copy()
+        for s_, mv in enumerate(self.moved):
+            if mv:
+                pts[s_] = mv[1]
+        return pts
 
     def slots(self, nWn, moving, refresh) -> list:
         """BoxOnPlane.slots (nWn (n, n) [1/kg] along :attr:`normal`), each
@@ -1904,6 +1962,12 @@ class BoxOnBox:
         if self.crossing:  # slot 0 the crossing, a point law: no pose
             return [(self.cross[0], self.cross[1].copy(), self.cross[2].copy())] + [None] * (self.n - 1)
         per = self.box.slots(nWn, moving, refresh)
+        for s_, mv in enumerate(self.moved):  # a corner beyond the face's edge: at the face's edge (_bounded)
+            if mv is False:
+                per[s_] = None
+            elif mv is not None and per[s_] is not None:
+                x, p = mv
+                per[s_] = (x, p + 0.5 * x * per[s_][2], per[s_][2])
         if self.which == 2:
             per = [None if q is None else (q[0], q[1], -q[2]) for q in per]
         return per

@@ -1,6 +1,6 @@
 """Boxes on boxes as a user stacks them (issue 13), in MuJoCo or pybullet:
 
-    .venv/bin/python scripts/box_stack.py mujoco|pybullet drop|land|edge|cross|rest|stack3 [steps]
+    .venv/bin/python scripts/box_stack.py mujoco|pybullet drop|land|edge|overhang|cross|rest|stack3 [steps]
 
 Natural rubber on steel, plain ``PairSpec``s with
 ``make_law("msf", ..., Curvature.sphere_on_plane(0.02))`` on every box-floor
@@ -23,6 +23,11 @@ lower box's face as the plane of the upper box's corners).
 - ``edge``: the drop's upper box from 0.2 m with its centre 30 mm off the
   lower box's (over its edge): it lands overhanging, tips off, and its
   edges may cross the lower box's (BoxOnBox's crossing).
+- ``overhang``: a box set flat 0.2 mm above a resting box, its centre
+  OVERHANG = 20 mm off along x (two corners 20 mm beyond the lower box's
+  face, its centre of mass over it): it rests on its two corners over the
+  face and on the face's edge, where BoxOnBox carries the two corners past
+  the edge (at the face's nearest points under the box).
 - ``rest``: a box set 0.2 mm above another (its lowest sharp corner 0.2 mm
   above the lower box's top face; the lower box 0.2 mm above the floor),
   tilted (1, 0.5, 0) deg, from rest: its four corners come to rest on the lower box's face;
@@ -60,6 +65,9 @@ MASS = 0.1
 GAP, TILT_DEG = 2e-4, (1.0, 0.5, 0.0)
 #: The crossing scene: the gap between the sharp edges [m] and B's speed toward A [m/s] (no gravity).
 CROSS_GAP, CROSS_SPEED = 5e-4, 0.5
+#: The overhang scene: the upper box's centre this far off the lower box's along x [m]: its +x corners
+#: 20 mm beyond the lower box's face, its centre of mass still over it (20 < 25 mm).
+OVERHANG = 0.02
 #: The landing scene: the upper box's lowest sharp corner this far above the lower box [m], its Euler
 #: angles [deg] (the drop's, MuJoCo's "xyz").
 LAND_GAP, LAND_EULER_DEG = 1e-3, (90.0, 7.0, 3.0)
@@ -88,6 +96,10 @@ def _scene(scene: str) -> list:
     if scene == "edge":  # the drop's upper box over the lower box's edge (its centre 30 mm off A's)
         return [("A", (0.0, 0.0, HALF), _quat_wxyz((0.0, 0.0, 0.0)), MASS, 0.0),
                 ("B", (0.03, 0.003, 0.2), _quat_wxyz((90.0, 7.0, 3.0)), MASS, 0.0)]
+    if scene == "overhang":  # a box set flat over a resting box's edge (its centre OVERHANG off A's, still over A)
+        flat = _quat_wxyz((0.0, 0.0, 0.0))
+        return [("A", (0.0, 0.0, HALF + GAP), flat, MASS, 0.0),
+                ("B", (OVERHANG, 0.0, 3 * HALF + 2 * GAP), flat, MASS, 0.0)]
     if scene == "land":  # the drop's upper box LAND_GAP above the lower one, at its speed from 0.2 m
         q = _quat_wxyz(LAND_EULER_DEG)
         R = np.zeros(9)
@@ -141,7 +153,8 @@ def _finish(out: dict, ad, boxes: list, masses: list, coms: list, poses: list) -
         slots = first + np.arange(bb.n)
         upper = level + 1
         row = {"active": mgr.active[slots].tolist(), "which": bb.which, "face": list(bb.face),
-               "crossing": bb.crossing}
+               "crossing": bb.crossing, "moved": [bool(mv) for mv in bb.moved],
+               "points_m": bb.points().tolist()}  # at the last step's start; a moved slot: on the face's edge
         if np.all(mgr.active[slots]):
             row["x_engine_start_m"] = bb.corners.x[bb.corner].tolist()  # at the last step's start
             bb.box.corners = bb.corners_at(*poses[upper], *poses[level])  # body 1 is the upper box
