@@ -21,7 +21,7 @@ from .. import _kernel as K
 from .state import (
     ENERGY_GAIN_RTOL, _Q, _WEL, _WT, _WVI, _X, PENDING_MAX_STEPS, V_ONSET_MIN, elastic_energy, ROTATION_PER_STEP_MAX,
     SUBSTEPS_PER_CONTACT, SUBSTEPS_PER_TANGENTIAL, _duration_estimate, _pc, _plain, _Rows, onset_speed_floor,
-    onset_stiffness, surface_recovery_rate,
+    onset_stiffness, surface_recovery_rate_one,
 )
 
 #: Pairs whose leaving the small-strain range (x_max/R, 2R) is warned one by
@@ -34,6 +34,14 @@ STRAIN_WARN_PAIRS = 10
 #: An onset speed past the law's range is brought below it to this share of
 #: itself [-] (Records._onset_in_range: a bisection on the law's own refusal).
 ONSET_CAP_RTOL = 1e-6
+
+
+def _as_rows(val, k: int) -> np.ndarray:
+    """val as a float (k,) array: itself when it is one already (np.broadcast_to's
+    Python costs more than the rest of an onset's bookkeeping), else broadcast."""
+    if type(val) is np.ndarray and val.dtype == np.float64 and val.shape == (k,):
+        return val
+    return np.broadcast_to(np.asarray(val, dtype=float), (k,))
 
 
 class Records:
@@ -130,8 +138,7 @@ class Records:
         pos = self._pos[pp]
         o_new = {}
         for key, val in o.items():
-            if not (type(val) is np.ndarray and val.dtype == np.float64 and val.shape == pp.shape):
-                val = np.broadcast_to(np.asarray(val, dtype=float), (pp.size,))  # a law's scalar or list
+            val = _as_rows(val, k)  # a law's scalar or list broadcast
             o_new[key] = val
             if key not in store:
                 store[key] = np.full(size, np.nan)
@@ -139,10 +146,10 @@ class Records:
         if not isinstance(batch, _Rows):  # the numpy path's batch carries its rows' onset constants
             batch.onset = {key: arr[self._pos[p]] for key, arr in store.items()}
         # duration estimate -> internal step, and the bookkeeping
-        tau_n = np.broadcast_to(np.asarray(_duration_estimate(law, o, m, v_used), dtype=float), (k,))
+        tau_n = _as_rows(_duration_estimate(law, o, m, v_used), k)
         x_est = cf.hertz_x_max(m, v_used, law.moduli.E, law.geom.R)
         k_t, _ = law.tangential_stiffness(x_est, o_new)
-        K.onset_post(pp, new, batch.n, batch.W, y, np.broadcast_to(np.asarray(t_abs, dtype=float), (k,)), vn, v_used,
+        K.onset_post(pp, new, batch.n, batch.W, y, _as_rows(t_abs, k), vn, v_used,
                      m, tau_n, np.asarray(k_t, dtype=float).reshape(k, 2), float(SUBSTEPS_PER_CONTACT),
                      float(SUBSTEPS_PER_TANGENTIAL), self._point, self.in_island, self._island_contact,
                      self.tau_est, self.v_n_in, self.v_n_used, self.m_eff, self.n_in, self.p_in, self.u_in,
@@ -152,7 +159,7 @@ class Records:
         # flight takes that surface at the body, so nothing restarts and no energy is created): its onset's
         # x_surface_onset is that surface's indentation, the body's x, at most the end's overlap x_res
         res = (self.x_res[pp] > 0.0) & (self.t_res[pp] >= self._t_now)
-        if np.any(res):
+        if res.any():
             q = pp[res]
             self.x_surface_onset[q] = np.minimum(np.maximum(self.x_onset[q], 0.0), self.x_res[q])
         if capped.any():  # an onset past the law's range: flagged from the start
@@ -174,12 +181,18 @@ class Records:
         pos = self._pos[p]
         onset = {k: float(v[pos]) for k, v in self._onset[g].items()}
         yl, nl = ye.tolist(), n.tolist()
+        # the pair's per-contact floats of the kernel's block (manager: self._fl, rows K.F_*) in one read
+        fl = self._fl[:, p].tolist()
+        turned = bool(self.turned[p])
+        x_max, F_max, x_at_F, f_min = fl[K.F_XMAX], fl[K.F_FMAX], fl[K.F_XATF], fl[K.F_FMIN]
+        W_el_comp, W_visc_comp = fl[K.F_WELC], fl[K.F_WVIC]
         v = yl[1:4]
         xd_end = -(v[0] * nl[0] + v[1] * nl[1] + v[2] * nl[2])
         v_out = max(-xd_end, 0.0)
-        vin = self.v_n_in[p] if self.v_n_in[p] > 0 else self.v_n_used[p]
-        tau = t_end - self.t_onset[p]
-        tau1 = self.tau1[p] if self.turned[p] else tau
+        v_n_in, v_n_used = float(self.v_n_in[p]), float(self.v_n_used[p])
+        vin = v_n_in if v_n_in > 0 else v_n_used
+        tau = t_end - fl[K.F_TONSET]
+        tau1 = fl[K.F_TAU1] if turned else tau
         u_in = self.u_in[p].tolist()
         u_out = [v[i] + xd_end * nl[i] for i in range(3)]
         lu = math.sqrt(u_in[0] ** 2 + u_in[1] ** 2 + u_in[2] ** 2)
@@ -191,12 +204,12 @@ class Records:
         vc_end = yl[7:10]
         cor_t = ((vc_end[0] * vct[0] + vc_end[1] * vct[1] + vc_end[2] * vct[2]) / lv**2
                  if lv > 1e-12 * scale else None)
-        x_m = float(self.x_turn[p]) if self.turned[p] else float(self.x_max[p])
+        x_m = fl[K.F_XTURN] if turned else x_max
         outside = []
         x_lim = law.x_limit
-        if self.outside[p] or (x_lim is not None and self.x_max[p] >= x_lim):
-            if x_lim is not None and self.x_max[p] >= x_lim:
-                outside.append(f"x_max = {self.x_max[p]:.6g} m reached 2R: k_p = sqrt(2 - x/R) of (15) was clamped")
+        if self.outside[p] or (x_lim is not None and x_max >= x_lim):
+            if x_lim is not None and x_max >= x_lim:
+                outside.append(f"x_max = {x_max:.6g} m reached 2R: k_p = sqrt(2 - x/R) of (15) was clamped")
             else:  # an onset past the law's range (_onset_in_range)
                 outside.append(f"onset speed {self.v_n_in[p]:.6g} m/s past the law's range (the msf approach would "
                                f"pass 2R before maximum compression): onset constants of {self.v_n_used[p]:.6g} m/s")
@@ -228,7 +241,7 @@ class Records:
             warnings.warn(gain, ValidityWarning, stacklevel=2)
         kl = self._kernel_law[g]
         if kl is not None and kl[0] != K.CODE_SIDE:  # a line contact's area: the numpy path's
-            Pc, Pc_F = K.peak_pressures(kl[0], kl[1], self._oc, p, x_m, float(self.x_at_F[p]), float(self.F_max[p]),
+            Pc, Pc_F = K.peak_pressures(kl[0], kl[1], self._oc, p, x_m, x_at_F, F_max,
                                         self._scr_rk4[0])
         else:
             Pc = _pc(law, x_m, {k: np.array([v]) for k, v in onset.items()})
@@ -239,7 +252,7 @@ class Records:
         W_el, W_vi = yl[_WEL], yl[_WVI]
         self.W_tq_finished[p] += yl[_WT] - yl[_Q]  # engines._contacts.balance: kept past the contact's end
         # the surface left indented at a force-zero end recovers (state.RECOVERY_DOC)
-        k_rec = float(surface_recovery_rate(self._onset[g], pos)[0]) if ended_by == "force-zero" else 0.0
+        k_rec = surface_recovery_rate_one(onset) if ended_by == "force-zero" else 0.0
         self.x_res[p] = yl[_X] if (k_rec > 0.0 and yl[_X] > 0.0) else 0.0
         self.t_res[p], self.k_res[p] = t_end, k_rec
         params = self._params.get(g)
@@ -251,23 +264,23 @@ class Records:
             cor_t_contact=cor_t_contact,
             cor_tau_ratio=tau1 / (tau - tau1) if tau > tau1 else 0.0,
             tau=float(tau), tau1=float(tau1), tau2=float(tau - tau1),
-            x_max=x_m, F_max=float(self.F_max[p]), Pc_max=Pc, Pc_at_Fmax=float(Pc_F),
-            W_el_comp=float(self.W_el_comp[p]), W_visc_comp=float(self.W_visc_comp[p]),
-            W_el_rest=-(W_el - float(self.W_el_comp[p])), W_visc_rest=W_vi - float(self.W_visc_comp[p]),
+            x_max=x_m, F_max=F_max, Pc_max=Pc, Pc_at_Fmax=float(Pc_F),
+            W_el_comp=W_el_comp, W_visc_comp=W_visc_comp,
+            W_el_rest=-(W_el - W_el_comp), W_visc_rest=W_vi - W_visc_comp,
             W_diss_n=W_el + W_vi, W_diss_t=yl[_WT], Q_t=yl[_Q],
             spin_in=None, spin_out=None,
-            f_min=None if not math.isfinite(self.f_min[p]) else float(self.f_min[p]),
-            f_max=float(self.f_max[p]) if math.isfinite(self.f_min[p]) else None,
+            f_min=f_min if math.isfinite(f_min) else None,
+            f_max=fl[K.F_FMAXR] if math.isfinite(f_min) else None,
             omega_x=onset.get("omega_x"), omega_y=onset.get("omega_y"),
             ended_by=ended_by, law=law.name, engine=self.engine, dt=self.dt,
             parameters=dict(params),
             inputs={
                 "pair": p, "body1": self.pair_names[p][0], "body2": self.pair_names[p][1],
-                "t_onset": float(self.t_onset[p]), "t_end": float(t_end),
-                "v_n_in": float(self.v_n_in[p]), "v_n_onset_used": float(self.v_n_used[p]),
+                "t_onset": fl[K.F_TONSET], "t_end": float(t_end),
+                "v_n_in": v_n_in, "v_n_onset_used": v_n_used,
                 "v_t_in": lu, "mass_effective": float(self.m_eff[p]), "tangential": self.pairs[p].tangential,
-                "internal_step": float(self.h[p]), "tau_estimate": float(self.tau_est[p]),
-                "x_max_overall": float(self.x_max[p]), "x_onset": float(self.x_onset[p]), "onset": onset,
+                "internal_step": fl[K.F_H], "tau_estimate": float(self.tau_est[p]),
+                "x_max_overall": x_max, "x_onset": float(self.x_onset[p]), "onset": onset,
                 # the recovering surface of the last contact at the onset step's start (state.RECOVERY_DOC)
                 "x_surface_onset": float(self.x_surface_onset[p]),
                 "point": self.p_in[p].tolist(), "normal": self.n_in[p].tolist(),

@@ -154,6 +154,18 @@ def surface_recovery_rate(onset: dict, pos) -> np.ndarray:
     return np.where(ok, E / (3.0 * np.where(ok, eta, 1.0)), 0.0)
 
 
+def surface_recovery_rate_one(onset: dict) -> float:
+    """:func:`surface_recovery_rate` of one contact whose onset constants
+    ``onset`` are Python floats (key -> float), in the same float arithmetic
+    (E' / (3 eta'_E) [1/s], 0.0 where the law has no "E", "eta_E" or eta_E <=
+    0): Records._end calls it once per impact, where the array form's numpy
+    calls on one element cost more than the rest of the end's bookkeeping."""
+    E, eta = onset.get("E"), onset.get("eta_E")
+    if E is None or eta is None or not (eta > 0.0 and math.isfinite(E) and math.isfinite(eta)):
+        return 0.0
+    return E / (3.0 * eta)
+
+
 def residual_indentation(x_res, k_res, t_res, t) -> np.ndarray:
     """x_r(t) = x_e exp(-(t - t_e) k) [m] of RECOVERY_DOC (n,): x_res the overlap
     at the force-zero end [m] (0: none), k_res the rate E'/(3 eta'_E) [1/s],

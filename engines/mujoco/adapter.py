@@ -2134,12 +2134,7 @@ class MujocoAdapter(EngineAdapter):
         body's spatial velocity (omega; v at its root's subtree centre of
         mass), v + omega x (xipos - subtree_com): what J(xipos) qvel gives,
         without forming the (3, nv) Jacobian (nv is large in a jet)."""
-        if int(self.model.body_weldid[body]) == 0:
-            return np.zeros(3)
-        d = self.data
-        w0, w1, w2, v0, v1, v2 = d.cvel[body].tolist()  # the same float arithmetic on Python floats
-        r0, r1, r2 = (d.xipos[body] - d.subtree_com[self.model.body_rootid[body]]).tolist()
-        return np.array([v0 + (w1 * r2 - w2 * r1), v1 + (w2 * r0 - w0 * r2), v2 + (w0 * r1 - w1 * r0)])
+        return np.array(_com_velocity_floats(self.model, self.data, body))
 
     def separating(self, i: int) -> bool:
         """True if body 1 of pair i moves away from body 2 along the contact
@@ -2173,8 +2168,13 @@ class MujocoAdapter(EngineAdapter):
     def _probe_now(self, i: int) -> dict:
         """_probe from the derived quantities as they are (no refresh)."""
         p = self._pairs[i]
-        return {"omega1": self._angular_velocity(p.body1), "omega2": self._angular_velocity(p.body2),
-                "v_com_rel": self._com_velocity(p.body1) - self._com_velocity(p.body2)}
+        m, d = self.model, self.data
+        b1, b2 = p.body1, p.body2
+        # _angular_velocity and _com_velocity of both bodies, inlined (twice per impact in a jet);
+        # the difference on Python floats is numpy's elementwise one
+        c1, c2 = _com_velocity_floats(m, d, b1), _com_velocity_floats(m, d, b2)
+        return {"omega1": d.cvel[b1, :3].copy(), "omega2": d.cvel[b2, :3].copy(),
+                "v_com_rel": np.array([c1[0] - c2[0], c1[1] - c2[1], c1[2] - c2[2]])}
 
     def _probe_batch(self):
         """The manager's batch probe: one refresh for all the records it
@@ -2182,6 +2182,18 @@ class MujocoAdapter(EngineAdapter):
         if not self._in_hook:
             self._refresh()
         return self._probe_now
+
+
+def _com_velocity_floats(model, data, body: int) -> tuple[float, float, float]:
+    """MujocoAdapter._com_velocity as three Python floats [m/s]: v + omega x (xipos -
+    subtree_com) from cvel (the same float arithmetic); zeros for a body welded to the world."""
+    if int(model.body_weldid[body]) == 0:
+        return 0.0, 0.0, 0.0
+    w0, w1, w2, v0, v1, v2 = data.cvel[body].tolist()
+    x0, x1, x2 = data.xipos[body].tolist()
+    s0, s1, s2 = data.subtree_com[model.body_rootid[body]].tolist()
+    r0, r1, r2 = x0 - s0, x1 - s1, x2 - s2  # numpy's elementwise difference, on Python floats
+    return v0 + (w1 * r2 - w2 * r1), v1 + (w2 * r0 - w0 * r2), v2 + (w0 * r1 - w1 * r0)
 
 
 # -- the one global hook ------------------------------------------------------------
