@@ -6,7 +6,8 @@ implicit: (M + h B) qacc = f) at dt = 10 ms and 1 ms, MSF on the tip.
 Printed per (B, dt): h B / I (I the arm's inertia about the hinge), the
 record's COR and x_max, the arm's angular speed 50 ms after the start
 (physical: ``velocity_offset`` taken out) and RestEnergy's steps above its
-bound with the largest excess. With the contacts' inverse inertia the
+bound with the largest excess, and whether the record is flagged
+(engines.mujoco.adapter.DAMPED_SHARE_MIN). With the contacts' inverse inertia the
 step's own response, W = J (M + h B)^-1 M M^-1 J^T (engines.mujoco._known.
 StepResponse), the implicit damper acts on the impact as added inertia h B
 (no loss) while a_ext holds its force -B v at the step's start: at 10 ms
@@ -59,17 +60,19 @@ def run(B: float, dt: float, r: float = 0.01, l: float = 0.2, v: float = 1.0, du
     rec = adapter.records[0] if adapter.records else None
     return {"B": B, "dt": dt, "hB_over_I": dt * B / float(M[0, 0]), "cor": rec.cor_n if rec else float("nan"),
             "x_max": rec.x_max if rec else float("nan"), "omega_out": -float(d.qvel[0] - adapter.velocity_offset()[0]),
-            "gains": len(acc.gains), "excess": max((g[1] - g[2] for g in acc.gains), default=0.0)}
+            "gains": len(acc.gains), "excess": max((g[1] - g[2] for g in acc.gains), default=0.0),
+            "damped_onsets": adapter.damped_onsets,
+            "flagged": bool(rec and any("damped link" in n for n in rec.outside_validity))}
 
 
 def main() -> int:
-    print("| B [N m s] | dt [ms] | h B / I | COR | x_max [mm] | omega at 50 ms [rad/s] | steps above the bound (largest excess [J]) |")
-    print("|---|---|---|---|---|---|---|")
+    print("| B [N m s] | dt [ms] | h B / I | COR | x_max [mm] | omega at 50 ms [rad/s] | steps above the bound (largest excess [J]) | flagged |")
+    print("|---|---|---|---|---|---|---|---|")
     for B in (0.0, 0.1, 0.2, 0.5, 1.0):
         for dt in (0.01, 0.001):
             o = run(B, dt)
             print(f"| {B:g} | {dt * 1e3:g} | {o['hB_over_I']:.2f} | {o['cor']:.3f} | {o['x_max'] * 1e3:.3f} | "
-                  f"{o['omega_out']:.3f} | {o['gains']} ({o['excess']:.3g}) |")
+                  f"{o['omega_out']:.3f} | {o['gains']} ({o['excess']:.3g}) | {'yes' if o['flagged'] else 'no'} |")
     return 0
 
 

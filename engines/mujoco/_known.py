@@ -404,6 +404,24 @@ class KnownForces:
         if self._S is not None:  # implicit damping / derivatives: the velocity change is S times M^-1's
             out[:] = out @ self._S.T
 
+    def damped_share(self, J: np.ndarray, n: np.ndarray) -> float:
+        """n.W n / n.W_0 n [-] of a pair (J (3, nv) its point Jacobian, n (3,) its
+        normal): the velocity change along n the step gives an impulse along n
+        (W, with the step's S, :meth:`solve`) over what the contact's own
+        inertia would give (W_0, M_eff^-1 without S); 1 when the step's A is M.
+        A damped link's contact sees the implicit damper as added inertia h B
+        (engines.mujoco.adapter.DAMPED_SHARE_MIN)."""
+        if self._S is None:
+            return 1.0
+        row = np.ascontiguousarray((n @ J).reshape(1, -1))
+        out = np.zeros_like(row)
+        mujoco.mj_solveM(self.model, self.data, out, row)
+        if self._Js.shape[0]:
+            out -= ((out @ self._Js.T) @ self._Ainv) @ self._G
+        w0 = float(out[0] @ row[0])
+        w = float((out[0] @ self._S.T) @ row[0])
+        return w / w0 if w0 > 0.0 else 1.0
+
     def change(self) -> np.ndarray | None:
         """S M^-1 (Q(now) - Q(last)) [(nv,)]: the generalised acceleration by
         the known forces' change since the forces the last step's a_ext

@@ -172,6 +172,19 @@ BOX_TURN_PER_STEP_MAX = 0.15
 #: normal, spun at 15 rad/s: at 16 deg its lowest point 44.7 deg from the
 #: nearest slot lay 4.0 mm deep (c (1 - cos D) = 3.98 mm).
 RING_SINK_MAX = 0.1
+#: A contact on a link begun where the step's implicit damping (MuJoCo's
+#: Euler with dof_damping, implicit, implicitfast: engines.mujoco._known,
+#: StepResponse) leaves less than this share of an impulse's velocity change
+#: along the normal (n.W n / n.W_0 n, KnownForces.damped_share; I / (I + h B)
+#: for one hinge) is flagged and warned (MujocoAdapter._check_damped_onsets):
+#: the contact's sub-cycle takes the damper for added inertia h B and holds
+#: its force at the step start, which pushes the link back out after a
+#: bounce inside the step. Measured (scripts/damped_impact.py, a hinged arm
+#: into the floor at 10 ms): share 0.81 (h B / I = 0.23) no step above
+#: RestEnergy's bound; 0.69, 0.47, 0.31 (h B / I = 0.45, 1.13, 2.26) one
+#: step 5.6, 34, 59 mJ above it. Not corrected (docs/engines.md, gymnasium's
+#: walkers: the undamped frame tried).
+DAMPED_SHARE_MIN = 0.75
 #: MuJoCo's divergence threshold on |qacc| (mjMAXVAL in mujoco/mjmodel.h).
 MJ_MAXVAL = 1e10
 #: A managed force explains a bad acceleration when its own estimate reaches
@@ -699,6 +712,9 @@ class MujocoAdapter(EngineAdapter):
                                   dtype=bool).reshape(P)
         self.fast_turns = 0  #: such contacts, flagged (each once)
         self.ring_sinks = 0  #: rim-ring contacts flagged for a lowest point between slots (_check_ring_sink)
+        self.damped_onsets = 0  #: link contacts begun under a strong implicit damper, flagged (_check_damped_onsets)
+        self._damped_share = np.ones(P)  # each slow pair's KnownForces.damped_share at this step (1: not read)
+        self._damped_warned: set[int] = set()
         self._sink_flagged: dict[int, float] = {}
         self._sink_warned: set[int] = set()
         self._turn_flagged: dict[int, float] = {}
@@ -1247,6 +1263,28 @@ class MujocoAdapter(EngineAdapter):
                 warnings.warn(f"pair {p} {self.pair_names[p]}: {note} (warned once per pair; adapter.fast_turns "
                               "counts them)", ValidityWarning, stacklevel=5)
 
+    def _check_damped_onsets(self, t0: float) -> None:
+        """Never silent: a contact on a link that began in the step from t0
+        where the step's implicit damping leaves less than DAMPED_SHARE_MIN of
+        an impulse's velocity change along its normal is flagged (that
+        contact) and warned once per pair; ``damped_onsets`` counts them."""
+        mgr, dt = self.manager, self.timestep
+        began = (self._damped_share < DAMPED_SHARE_MIN) & (mgr.x_max > 0.0) & (mgr.t_onset >= t0) & (
+            mgr.t_onset < t0 + dt)
+        for p in np.flatnonzero(began).tolist():
+            share = float(self._damped_share[p])
+            note = (f"damped link: the step's implicit damping leaves {share:.3g} of an impulse's velocity change "
+                    f"along the contact's normal (below {DAMPED_SHARE_MIN:g}; 1 / (1 + h B / I) for one joint, "
+                    f"dt = {dt:g} s): the contact takes the damper for added inertia and holds its force at the "
+                    "step's start, and an impact that bounces inside the step gains energy (a hinged arm: up to "
+                    "59 mJ in a step at 0.31); take a smaller timestep (or less joint damping)")
+            mgr.flag_contact(p, note, float(mgr.t_onset[p]))
+            self.damped_onsets += 1
+            if p not in self._damped_warned:
+                self._damped_warned.add(p)
+                warnings.warn(f"pair {p} {self.pair_names[p]}: {note} (warned once per pair; "
+                              "adapter.damped_onsets counts them)", ValidityWarning, stacklevel=5)
+
     def _check_ring_sink(self) -> None:
         """Never silent: a cylinder's rim ring in contact whose lowest rim
         point lies an angle D from the nearest of its slots, with c (1 - cos
@@ -1512,6 +1550,8 @@ class MujocoAdapter(EngineAdapter):
         kin.lever = self._lever(kin)
         out: ContactForces = self.manager.step(self._mask(kin))
         self._check_fast_turns(float(d.time))
+        if self._known is not None:
+            self._check_damped_onsets(float(d.time))
         if self._line:
             self._check_ring_sink()
         self._last_kin, self._last_out = kin, out
@@ -1627,6 +1667,8 @@ class MujocoAdapter(EngineAdapter):
         out: ContactForces = mgr.step(self._mask(kin))
         self._check_deep_onsets(float(d.time))
         self._check_fast_turns(float(d.time))
+        if self._known is not None:
+            self._check_damped_onsets(float(d.time))
         if self._line:
             self._check_ring_sink()
         self._last_kin, self._last_out = kin, out
@@ -1847,6 +1889,8 @@ class MujocoAdapter(EngineAdapter):
             MinvJT = np.zeros((3, m.nv))
             self._solve_m(MinvJT, np.ascontiguousarray(J))
             W = J @ MinvJT.T
+            if self._known is not None and not self.manager.active[i]:  # a possible onset (_check_damped_onsets)
+                self._damped_share[i] = self._known.damped_share(J, n)
             Jc = self._jacobian(p.body1, d.xipos[p.body1], self._jac).copy()
             Jc -= self._jacobian(p.body2, d.xipos[p.body2], self._jac2)
             v_com = Jc @ d.qvel
