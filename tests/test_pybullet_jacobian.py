@@ -94,3 +94,20 @@ def test_a_turned_floating_base_robots_jacobian_is_in_the_world_frame():
     finally:
         pb.disconnect(c)
 
+
+
+def test_a_multibody_with_spherical_joints_is_refused_before_any_step():
+    """pybullet_data's humanoid/humanoid.urdf (8 spherical joints): before,
+    pybullet.error "Spherical joints are not supported" from calculateJacobian
+    at its first contact, mid-run."""
+    c = _client()
+    try:
+        plane = pb.loadURDF("plane.urdf", physicsClientId=c)
+        u = pb.loadURDF("humanoid/humanoid.urdf", [0, 0, 1.0], physicsClientId=c)
+        links = [-1] + list(range(pb.getNumJoints(u, physicsClientId=c)))
+        links = [k for k in links if len(pb.getCollisionShapeData(u, k, physicsClientId=c)) == 1]
+        with pytest.raises(ValueError, match=r"body \d+ has 8 spherical joint\(s\) \(1 'chest', .*supports "
+                                             r"revolute, prismatic and fixed joints only"):
+            PybulletAdapter(c, [PairSpec((u, k), (plane, -1), _law()) for k in links])
+    finally:
+        pb.disconnect(c)

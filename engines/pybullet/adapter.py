@@ -161,6 +161,10 @@ class _Pose:
     frame: np.ndarray  # (3,) [m] origin of the link (URDF/joint) frame; the centre of mass for a base
 
 
+#: joint types pybullet's calculateJacobian refuses ("Spherical joints are not supported in the pybullet binding")
+_JOINT_NAMES = {pb.JOINT_SPHERICAL: "spherical", pb.JOINT_PLANAR: "planar"}
+
+
 def _mat(quat) -> np.ndarray:
     return np.array(pb.getMatrixFromQuaternion(quat)).reshape(3, 3)
 
@@ -454,6 +458,16 @@ class PybulletAdapter(EngineAdapter):
         nj = pb.getNumJoints(uid, physicsClientId=c)
         if not -1 <= link < nj:
             raise ValueError(f"{label}: link index {link} is outside [-1, {nj - 1}] of body {uid}")
+        articulated = link >= 0 or (nj > 0 and not self._base_fixed(uid))
+        odd = [(j, pb.getJointInfo(uid, j, physicsClientId=c)) for j in range(nj if articulated else 0)]
+        odd = [(j, info[1].decode(), _JOINT_NAMES[info[2]]) for j, info in odd if info[2] in _JOINT_NAMES]
+        if odd:
+            raise ValueError(f"{label}: body {uid} has {len(odd)} {'/'.join(sorted({k for _, _, k in odd}))} joint(s) "
+                             f"({', '.join(f'{j} {n!r}' for j, n, _ in odd[:4])}{' ...' if len(odd) > 4 else ''}): "
+                             "pybullet's calculateJacobian, which the contact's inverse inertia W = J M^-1 J^T of a "
+                             "multibody needs, supports revolute, prismatic and fixed joints only; load the model "
+                             "with those (e.g. a spherical joint as three revolute ones) or leave its contacts to "
+                             "pybullet's own contact")
         return uid, link
 
     def _body_name(self, b) -> str:
