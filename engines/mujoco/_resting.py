@@ -129,35 +129,34 @@ def step(ad, factor: float) -> tuple[bool, bool, int]:
     # d.time, which the step tracker read in this hook call (only the hook calls this, after
     # StepTracker.classify; an MjData field read from Python costs ~1 us in the hook)
     t0 = ad._tracker.t0
-    # the step's ContactForces arrays, new every step (the manager's are; a caller may keep them)
-    force, point, pair = np.empty((k, 3)), np.empty((k, 3)), np.empty(k, np.int64)
-    code, n, bad, n_hit, n_unheld, m = call(t0, float(mgr.dt), float(mgr.settle_rate), bool(mgr.timing_correction),
-                                            qfrc, force, point, pair, *args)
-    if call is resting_step:
-        cached[3] = _compiled((t0, float(mgr.dt), float(mgr.settle_rate), bool(mgr.timing_correction), qfrc, force,
-                               point, pair) + args)
+    res = ad._native_result
+    if res is None:
+        # the step's ContactForces arrays, new every step (the manager's are; a caller may keep them)
+        force, point, pair = np.empty((k, 3)), np.empty((k, 3)), np.empty(k, np.int64)
+        code, n, bad, n_hit, n_unheld, m = call(t0, float(mgr.dt), float(mgr.settle_rate),
+                                                bool(mgr.timing_correction), qfrc, force, point, pair, *args)
+        if call is resting_step:
+            cached[3] = _compiled((t0, float(mgr.dt), float(mgr.settle_rate), bool(mgr.timing_correction), qfrc,
+                                   force, point, pair) + args)
+    else:  # the native hook called resting_step for this step (engines.mujoco._native: the same arguments)
+        ad._native_result = None
+        code, n, bad, n_hit, n_unheld, m, force, point, pair = res
     if code != RESTING:
         if code == BAD_DETECTION:
             ad._detection_failed(bad)
         return False, False, n
-    # what the general path leaves on the adapter and the manager (_compute_rest, ContactManager.step);
-    # no link pairs (eligible): _check_deep_onsets has nothing to do. The kinematics of the last
-    # resting step (views of the same buffers) are kept when n is the same and the general path
-    # has not made others since; after_step's outputs stay in the kernel's buffers (the last
-    # arguments), views kept while m is the same
+    if n_hit and m and not n_unheld:  # the common case: every force held and applied
+        finish(ad, cached, force, point, pair, n, m, t0)
+        return True, True, n
+    # what the general path leaves on the adapter and the manager, as finish
     if n != k or kin is None or kin is not ad._last_kin or todo[0].shape[0] != m:
         force, point, pair, kin, todo = _views(ad, cached, force, point, pair, n, m, t0)
     else:
         kin.t = t0
-    c = ints.tolist()
-    mgr.last_step_info = {"rows": n, "substeps": c[2], "segments": 1, "onsets": 0, "ends": c[3], "settled": c[0],
-                          "settled_iterations": c[1], "island_rows": 0}
+    _info(mgr, ints, n)
     ad._last_out = ad.last_forces = ContactForces(force, point, pair)
     ad._apply = []
     ad._apply_couple = None
-    if n_hit and m and not n_unheld:  # the common case: every force held and applied
-        ad._apply_fast = todo
-        return True, True, n
     ad._apply_fast = todo if n_hit and m else None
     if not n:
         ad.last_forces = None
@@ -167,6 +166,35 @@ def step(ad, factor: float) -> tuple[bool, bool, int]:
                          n_unheld, todo)
         return True, False, n
     return True, bool(n_hit), n
+
+
+def finish(ad, cached: list, force, point, pair, n: int, m: int, t0: float) -> None:
+    """What the general path leaves on the adapter and the manager (_compute_rest,
+    ContactManager.step) after a resting step whose n rows' forces were all held and applied (m
+    after_step rows): the step's ContactForces (force, point (k or n, 3) [N, m], pair), the
+    kinematics and after_step views, last_step_info; t0: the step's start time [s]. No link pairs
+    (eligible): _check_deep_onsets has nothing to do. The kinematics of the last resting step
+    (views of the same buffers) are kept when n is the same and the general path has not made
+    others since; after_step's outputs stay in the kernel's buffers (the last arguments), views kept
+    while m is the same. Called by :func:`step` and, for a step the native hook did, by
+    engines.mujoco._native.Native.sync."""
+    kin, todo = cached[5], cached[6]
+    if n != cached[4] or kin is None or kin is not ad._last_kin or todo[0].shape[0] != m:
+        force, point, pair, kin, todo = _views(ad, cached, force, point, pair, n, m, t0)
+    else:
+        kin.t = t0
+    _info(ad.manager, cached[2], n)
+    ad._last_out = ad.last_forces = ContactForces(force, point, pair)
+    ad._apply = []
+    ad._apply_couple = None
+    ad._apply_fast = todo
+
+
+def _info(mgr, ints, n: int) -> None:
+    """The manager's last_step_info of a resting step of n rows (the kernel's counters ints)."""
+    c = ints.tolist()
+    mgr.last_step_info = {"rows": n, "substeps": c[2], "segments": 1, "onsets": 0, "ends": c[3], "settled": c[0],
+                          "settled_iterations": c[1], "island_rows": 0}
 
 
 def _views(ad, cached: list, force, point, pair, n: int, m: int, t0: float) -> tuple:

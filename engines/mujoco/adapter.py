@@ -123,7 +123,7 @@ from engines.base import (
     PairSpec,
     check_law_curvature,
 )
-from engines.mujoco import _held, _resting
+from engines.mujoco import _held, _native, _resting
 from engines.mujoco._known import KnownForces, StepResponse
 from engines.mujoco._stepping import StepTracker
 from msf_contact._validate import ValidityWarning
@@ -692,6 +692,9 @@ class MujocoAdapter(EngineAdapter):
         #: general path, which it is tested against
         self.fused = self.compiled
         self._rest_args = None  # its arguments (engines.mujoco._resting._args)
+        #: the native mjcb_passive's entry of this adapter (engines.mujoco._native; made by the first step())
+        self._native = None
+        self._native_result = None  # the resting kernel's results of a call the native hook began
         self._all_msf = True  # every pair on MSF (set_mode)
         self._last_kin = None  # the kinematics of the last step (_compute, _compute_rest, _resting.step)
         for i, sb in self._sphere_box.items():  # each sphere-box pair's own law, its curvature following the point
@@ -837,12 +840,20 @@ class MujocoAdapter(EngineAdapter):
         counts = self.data.warning.number  # (mjNWARNING,) a view of MjData's counters (one attribute per step
         m, d = self.model, self.data       # through the MjWarningStat wrapper costs ~1-3 us)
         with ctx:
-            for _ in range(int(n)):
-                resets = counts.item(bad)
-                mujoco.mj_step(m, d)
-                self.steps += 1
-                if counts.item(bad) != resets:
-                    self._bad_acceleration()
+            # resting steps in MuJoCo's raw mjcb_passive while this loop runs (engines.mujoco._native)
+            nat = _native.enter(self, _dispatch, _PREVIOUS) if n else None
+            try:
+                for _ in range(int(n)):
+                    resets = counts.item(bad)
+                    mujoco.mj_step(m, d)
+                    self.steps += 1
+                    if counts.item(bad) != resets:
+                        if nat is not None:
+                            nat.sync(self)
+                        self._bad_acceleration()
+            finally:
+                if nat is not None:
+                    _native.leave(self, nat)
 
     def _bad_acceleration(self) -> None:
         """MuJoCo flagged a NaN, inf or |qacc| > mjMAXVAL in the step just taken
@@ -927,10 +938,15 @@ class MujocoAdapter(EngineAdapter):
         return records
 
     # -- the hook ----------------------------------------------------------------
-    def _passive(self, model, data) -> None:
+    def _passive(self, model, data, kind: str | None = None) -> None:
         """The hook: classify the call (engines.mujoco._stepping), compute the
-        step's force once per step, apply it in every call of the step."""
-        kind = self._tracker.classify(data)
+        step's force once per step, apply it in every call of the step. kind:
+        the call's class when already known (engines.mujoco._native, which
+        calls this for an adapter that has a native entry)."""
+        if kind is None:
+            if self._native is not None:
+                return self._native.passive(self, model, data)
+            kind = self._tracker.classify(data)
         known = self._known
         if known is not None:
             known.read(kind, self._tracker.stage)
@@ -1589,7 +1605,7 @@ class MujocoAdapter(EngineAdapter):
         """:meth:`_compute` with the free group's work in :mod:`engines.mujoco._kernels`
         (the same arithmetic, tests/test_mujoco_kernels.py), reading the MjData
         arrays directly; the slow pairs as in :meth:`_compute`."""
-        if self.fused and _resting.eligible(self):
+        if self._native_result is not None or (self.fused and _resting.eligible(self)):
             # the resting step in one compiled call (engines.mujoco._resting); if the step is not a
             # resting one it stops after the free group's kinematics and the general path goes on
             done, applied, n = _resting.step(self, CANDIDATE_FACTOR)
