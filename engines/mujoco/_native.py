@@ -23,7 +23,8 @@ and when ``step`` returns (or raises). A call the native hook hands over
 after it began (the state jumped, or the kernel found the step not a
 resting one) is resumed by the Python hook from there (:meth:`Native.passive`).
 
-When it is used: only inside ``MujocoAdapter.step`` (no user code runs
+When it is used: only inside ``MujocoAdapter.step(n)`` for n > 1 (one step
+alone: its set-up and hand-over cost about what it saves; no user code runs
 between its steps, so the conditions the Python hook checks each step,
 :func:`engines.mujoco._resting.eligible`, and the scalars it passes cannot
 change behind the native hook's back), for an adapter whose resting step is

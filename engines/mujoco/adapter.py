@@ -840,8 +840,10 @@ class MujocoAdapter(EngineAdapter):
         counts = self.data.warning.number  # (mjNWARNING,) a view of MjData's counters (one attribute per step
         m, d = self.model, self.data       # through the MjWarningStat wrapper costs ~1-3 us)
         with ctx:
-            # resting steps in MuJoCo's raw mjcb_passive while this loop runs (engines.mujoco._native)
-            nat = _native.enter(self, _dispatch, _PREVIOUS) if n else None
+            # resting steps in MuJoCo's raw mjcb_passive while this loop runs (engines.mujoco._native); not
+            # for one step, where its set-up and hand-over cost about what it saves (the jet's step(1) loop:
+            # 3-4 % fewer impacts per CPU-second with it, docs/benchmarks.md)
+            nat = _native.enter(self, _dispatch, _PREVIOUS) if n > 1 else None
             try:
                 for _ in range(int(n)):
                     resets = counts.item(bad)
