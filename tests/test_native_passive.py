@@ -12,7 +12,10 @@ raise from ``mj_step``."""
 
 from __future__ import annotations
 
+import subprocess
+import sys
 import warnings
+from pathlib import Path
 
 import mujoco
 import numpy as np
@@ -24,6 +27,8 @@ from engines.mujoco.adapter import _dispatch
 from tests.test_resting_fused import STATE, _scene
 
 pytestmark = pytest.mark.mujoco
+
+ROOT = Path(__file__).resolve().parent.parent
 
 N = 9
 
@@ -114,3 +119,19 @@ def test_native_hook_two_adapters_and_errors():
         assert _native._STATE["slot"].value == _native._REG[NK.R_FALLBACK]  # the bindings' trampoline again
         assert not _native._REG[NK.R_SLOTS::3].any()
     assert mujoco.get_mjcb_passive() is None
+
+
+def test_native_hook_loaded_before_first_use_in_a_fresh_process():
+    """The hook's module imported before any adapter uses it (as tests/test_jitcache.py imports
+    every kernel module) still finds the registry: the symbol is registered when the kernel
+    module is imported (before: the hook read address 0 and the process died in mj_step)."""
+    code = ("import engines.mujoco._native_hook\n"
+            "from benchmarks.spheres import mujoco_variant\n"
+            "from engines.mujoco import _native_kernel as NK\n"
+            "step, info, ad = mujoco_variant(3, 'msf')\n"
+            "step(600)\n"
+            "print(int(ad._native.ti[NK.I_COUNT]), info()['settled'])\n")
+    out = subprocess.run([sys.executable, "-c", code], cwd=ROOT, capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stderr[-2000:]
+    done, settled = map(int, out.stdout.split())
+    assert done > 0 and settled == 3

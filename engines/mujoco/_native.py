@@ -23,8 +23,9 @@ and when ``step`` returns (or raises). A call the native hook hands over
 after it began (the state jumped, or the kernel found the step not a
 resting one) is resumed by the Python hook from there (:meth:`Native.passive`).
 
-When it is used: only inside ``MujocoAdapter.step(n)`` for n > 1 (one step
-alone: its set-up and hand-over cost about what it saves; no user code runs
+When it is used: only inside ``MujocoAdapter.step(n)`` for n > 1 called from
+the main thread (one step alone: its set-up and hand-over cost about what it
+saves; no user code runs
 between its steps, so the conditions the Python hook checks each step,
 :func:`engines.mujoco._resting.eligible`, and the scalars it passes cannot
 change behind the native hook's back), for an adapter whose resting step is
@@ -42,6 +43,7 @@ import ctypes
 import glob
 import os
 import struct
+import threading
 
 import mujoco
 import numpy as np
@@ -49,8 +51,8 @@ import numpy as np
 from engines.mujoco import _native_kernel as NK
 from engines.mujoco._stepping import JUMP_VTOL
 
-#: the per-process registry the cfunc reads (its address is compiled into the cfunc)
-_REG = np.zeros(NK.R_LEN, np.int64)
+#: the per-process registry the cfunc reads (engines.mujoco._native_kernel.REGISTRY)
+_REG = NK.REGISTRY
 _STATE: dict = {}  # "lib", "slot" (the raw mjcb_passive pointer), "cfunc", "offsets", "unavailable"
 _CODE = {np.dtype(np.float64): "f", np.dtype(np.int64): "i", np.dtype(np.bool_): "b", np.dtype(np.int8): "c"}
 _RK4 = int(mujoco.mjtIntegrator.mjINT_RK4)
@@ -129,9 +131,6 @@ def _cfunc():
     cache; the registry's address reaches it as the external symbol NK.REGISTRY_SYMBOL)."""
     cf = _STATE.get("cfunc")
     if cf is None:
-        import llvmlite.binding as llvm
-
-        llvm.add_symbol(NK.REGISTRY_SYMBOL, int(_REG.ctypes.data))
         from engines.mujoco._native_hook import passive
 
         cf = _STATE["cfunc"] = passive
@@ -267,9 +266,12 @@ def enter(ad, dispatch, previous: list) -> Native | None:
     (module docstring). dispatch: the adapters' Python mjcb_passive (engines.mujoco.adapter._dispatch),
     which must be the one installed; previous: the Python hook it chains (none allowed: the native
     hook would skip it). Pair with :func:`leave`."""
-    if not _usable(ad) or (previous and previous[0] is not None) or mujoco.get_mjcb_passive() is not dispatch:
+    if (not _usable(ad) or (previous and previous[0] is not None) or mujoco.get_mjcb_passive() is not dispatch
+            or threading.current_thread() is not threading.main_thread()):  # (the registry is not locked)
         return None
     nat = ad._native
+    if nat is not None and nat.slot >= 0:  # a step inside this adapter's step (from a callback): already entered
+        return None
     if nat is None:
         if _STATE.get("unavailable"):
             return None

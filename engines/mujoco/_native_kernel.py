@@ -35,6 +35,7 @@ addresses).
 
 from __future__ import annotations
 
+import llvmlite.binding as llvm
 import numpy as np
 from llvmlite import ir
 from numba import carray, njit, types
@@ -91,9 +92,13 @@ def _vp(typingctx, addr):
     return types.voidptr(types.int64), codegen
 
 
-#: the symbol under which engines.mujoco._native registers its registry's address with LLVM
-#: (llvmlite.binding.add_symbol) before the hook is compiled or loaded from numba's cache
+#: the process's registry (layout above), which the native hook reads through the external symbol
+#: REGISTRY_SYMBOL: registered with LLVM (llvmlite.binding.add_symbol) here, at import, so before
+#: engines.mujoco._native_hook, which imports this module, compiles the hook or loads it from
+#: numba's cache (a hook loaded before the symbol is known reads address 0)
+REGISTRY = np.zeros(R_LEN, np.int64)
 REGISTRY_SYMBOL = "msf_contact_native_passive_registry"
+llvm.add_symbol(REGISTRY_SYMBOL, int(REGISTRY.ctypes.data))
 
 
 @intrinsic
