@@ -199,7 +199,8 @@ def twist(dt: float, seconds: float, wz: float = 5.0) -> str:
 VARIANTS = {"before": {"anchor_depth": False, "limit_retrial": False},
             "retrial": {"anchor_depth": False, "limit_retrial": True},
             "anchor": {"anchor_depth": True, "limit_retrial": False},
-            "now": {}}
+            "now": {},
+            "trial": {"trial_a_ext": True}}
 
 
 def seeds(tell: bool, mu, model: str = "ant.xml", variants=("before", "now"), which=(13, 1, 2, 3, 4)) -> list[str]:

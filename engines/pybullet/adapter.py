@@ -262,6 +262,11 @@ class PybulletAdapter(EngineAdapter):
         semi-implicit lead since its onset) is brought up to it at the step
         start, never deeper (:meth:`_anchor_depths`): default True; False
         keeps the internal x as integrated (as before, for comparison).
+    trial_a_ext: with ``limit_trial``, a link contact's a_ext (the contact
+        point's acceleration from everything but the contacts) taken from the
+        trial step's own velocity change less its MSF loads' (:meth:`_trial_a_ext`),
+        this step's, instead of the finite difference of the last step's
+        velocities (default False: docs/engines.md has both measured).
     compiled: do the per-step array work of the fast pairs (detection,
         velocities, a_ext, W, the cross-pair correction, the forces summed
         per body) in the numba kernels of :mod:`engines.pybullet._kernels`
@@ -273,7 +278,8 @@ class PybulletAdapter(EngineAdapter):
 
     def __init__(self, client: int, pairs: list[PairSpec], compiled: bool = True, *, edge_radii: dict | None = None,
                  curvature: dict | None = None, link_shapes: dict | None = None, mesh_slots: dict | None = None,
-                 limit_trial: bool = False, limit_retrial: bool = True, anchor_depth: bool = True):
+                 limit_trial: bool = False, limit_retrial: bool = True, anchor_depth: bool = True,
+                 trial_a_ext: bool = False):
         if not isinstance(client, int) or not pb.isConnected(client):
             raise ValueError(f"client = {client!r} is not a connected pybullet physics client")
         if not isinstance(compiled, bool):
@@ -284,6 +290,12 @@ class PybulletAdapter(EngineAdapter):
             raise ValueError(f"limit_retrial = {limit_retrial!r} must be True or False")
         if not isinstance(anchor_depth, bool):
             raise ValueError(f"anchor_depth = {anchor_depth!r} must be True or False")
+        if not isinstance(trial_a_ext, bool):
+            raise ValueError(f"trial_a_ext = {trial_a_ext!r} must be True or False")
+        #: with limit_trial, a link contact's a_ext from the trial's own velocity change (_trial_a_ext)
+        self.trial_a_ext = trial_a_ext
+        self._trial_end: dict[int, tuple] = {}  # the last trial's end state per multibody slot (_try_step)
+        self._trial_used = None  # the loads the last trial applied ((pairs, forces, points) or None)
         self.client = client
         #: a link contact's internal approach kept no deeper than the engine's geometry (_anchor_depths)
         self.anchor_depth = anchor_depth
@@ -436,9 +448,15 @@ class PybulletAdapter(EngineAdapter):
         #: a law per contact curvature, built from the PairSpec's (engines._narrow.LawBank, _narrow_law)
         self.laws = LawBank(kernel_law)
         #: contacts found deep at their onset (engines._contacts.balance.DeepOnsets): the pairs on a link of
-        #: a multibody (the island energy check leaves them out) and the narrow-phase pairs
+        #: a multibody (the island energy check sees them a step late) and the narrow-phase pairs
         self._deep = DeepOnsets()
         self._unchecked_said = False  # _say_unchecked
+        #: per multibody (uid): the work the MSF contacts' own impulses did on it since the start [J]
+        #: (_account_multibody_work; its islands' energy check, _energy_probe)
+        self.multibody_work: dict[int, float] = {}
+        self._mb_dyn: dict[int, list] = {}  # per multibody: [(mass, principal inertia (3,))] of base and links
+        self._last_gen = None  # per multibody: (generalized force of the last step's loads, u at its start)
+        self._u_now: dict = {}  # per multibody: its generalized velocity at this step's start
         self._deep_mask = (self._b_art[self._slot].any(axis=1)
                            | np.array([k >= 0 for k, _ in self._narrow_of], bool).reshape(n))
 
@@ -1132,6 +1150,9 @@ class PybulletAdapter(EngineAdapter):
             if loads is not None:
                 self._apply(bodies, *loads)
             pb.stepSimulation(physicsClientId=c)
+            if self.trial_a_ext:
+                self._trial_end = {j: self._pose(self._body_list[j]) for j in self._art_slots}
+                self._trial_used = loads
             return {uid: self._held_over_step(uid) for uid in uids}
         finally:
             pb.restoreState(sid, physicsClientId=c)
@@ -1169,6 +1190,7 @@ class PybulletAdapter(EngineAdapter):
                 del mb[4:]
                 mb[2] = None  # M^-1 with the new held joints (_minv), the torque change through it (_torque_dq)
             kp = np.asarray(kin.pair, int)
+            tcache: dict = {}
             for r, i in enumerate(kp.tolist()):
                 j1, j2 = self._slot[i]
                 uid_r = {int(self._b_uid[j]) for j in (j1, j2) if self._b_art[j]}
@@ -1176,6 +1198,10 @@ class PybulletAdapter(EngineAdapter):
                     continue
                 poses = (bodies.pose(j1), bodies.pose(j2))
                 kin.W[r], kin.W_com[r] = self._inverse_inertia(i, poses, kin.point[r])
+                if self._trial_a_ext_ok(i):  # from the second trial, whose held set is now H (_trial_a_ext)
+                    kin.a_ext[r] = self._trial_a_ext(bodies, i, kin.point[r], tcache)
+                    self._last_a_ext[i] = kin.a_ext[r]
+                    continue
                 for b, pose, j, sign in ((self._bodies[i][0], poses[0], j1, 1.0),
                                          (self._bodies[i][1], poses[1], j2, -1.0)):
                     if not (self._b_art[j] and b[0] in old):
@@ -1188,6 +1214,82 @@ class PybulletAdapter(EngineAdapter):
                     self._last_a_ext[i] = kin.a_ext[r]
         self.limit_trial_s += time.perf_counter() - t0
         return bool(changed)
+
+    def _trial_a_ext_ok(self, i) -> bool:
+        """Pair i's a_ext can be taken from this step's trial (_trial_a_ext):
+        with ``trial_a_ext``, a trial taken this step, and each body of the
+        pair a link of a multibody or fixed (a free body's finite difference
+        is exact: nothing but the pairs moves it)."""
+        if not (self.trial_a_ext and self._engaged_at == self._steps and self._trial_end):
+            return False
+        j1, j2 = self._slot[i]
+        return bool((self._b_art[j1] or self._b_art[j2]) and (self._b_art[j1] or self._b_fixed[j1])
+                    and (self._b_art[j2] or self._b_fixed[j2]))
+
+    def _trial_a_ext(self, bodies: _Bodies, i, point, cache: dict) -> np.ndarray:
+        """Pair i's a_ext [m/s^2] (3,) from this step's trial (``trial_a_ext``):
+        the velocity change of the material points at ``point`` over the
+        trial's ``stepSimulation`` (pybullet's own step: gravity, this step's
+        torques, the velocity terms, the limits it held), less the change the
+        trial's MSF loads F_q caused, dt J_p M_H^-1 sum_q J_q^T F_q through
+        the held joints' inverse inertia (:meth:`_minv`, the trial's held set
+        H), over dt; plus, as the finite difference keeps them
+        (:meth:`_cross_dv`), the other pairs' forces the manager holds into
+        this step (``ContactManager._held_force``: an island takes them out
+        of its rows' a_ext again and couples them explicitly; left out, they
+        were taken out twice: the ant put down on its feet sank into the floor
+        at 36 mm/s while its internal approach stood still, +13.4 J). Given H
+        pybullet's step is linear in the loads, so this is the step's own
+        acceleration from everything but the contacts; the finite difference
+        of the last step's velocities (the default without the trial) is the
+        last step's, and missed the change within one step of the velocity
+        terms, the Jacobians of turning legs and the limits (docs/engines.md).
+        ``cache`` holds the loads' dq per multibody for one step (and one
+        trial)."""
+        dt = self._dt
+        out = np.zeros(3)
+        held = self.manager._held_force
+        for side, sign in ((0, 1.0), (1, -1.0)):
+            j = int(self._slot[i, side])
+            if not self._b_art[j]:
+                continue
+            b = self._body_list[j]
+            uid = b[0]
+            r0 = point - bodies.com[j]
+            e = self._trial_end[j]
+            v0 = bodies.v[j] + np.cross(bodies.w[j], r0)
+            v1 = e.v + np.cross(e.w, e.rot @ (bodies.rot[j].T @ r0))
+            if uid not in cache:
+                cache[uid] = self._loads_dq(bodies, uid, self._trial_used, held)
+            Jp = self._jacobian(b, bodies.pose(j), point)
+            a = (v1 - v0) / dt - Jp @ cache[uid]
+            if np.any(held[i] != 0.0):  # the pair's own held force is no outside load (_cross_dv: add_own_dv)
+                own = self._loads_dq(bodies, uid, None, held, only=i)
+                a = a - Jp @ own
+            out += sign * a
+        return out
+
+    def _loads_dq(self, bodies: _Bodies, uid, loads, held, only=None) -> np.ndarray:
+        """M_H^-1 (sum_q J_q^T F_q - sum_h J_h^T H_h) of multibody ``uid`` [per
+        coordinate, /s^2]: loads ((pairs, forces (k, 3) [N], points (k, 3)) or
+        None) at their points, H the manager's held forces (P, 3) [N] at the
+        pairs' last contact points (``_pt``), +F on body 1 and -F on body 2
+        (:meth:`_trial_a_ext`); ``only``: just pair ``only``'s held force,
+        with the opposite sign (its own, to be taken out)."""
+        Q = np.zeros(self._minv(uid).shape[0])
+        terms = []
+        if loads is not None and only is None:
+            terms += [(int(k), np.asarray(F, float), np.asarray(pt, float), 1.0)
+                      for k, F, pt in zip(np.asarray(loads[0], int).tolist(), loads[1], loads[2])]
+        hp = [only] if only is not None else np.flatnonzero(np.any(held != 0.0, axis=1)).tolist()
+        terms += [(int(k), held[k], self._pt[k], 1.0 if only is not None else -1.0) for k in hp]
+        for k, F, pt, g in terms:
+            for sd, sg in ((0, 1.0), (1, -1.0)):
+                jj = int(self._slot[k, sd])
+                bb = self._body_list[jj]
+                if self._b_art[jj] and bb[0] == uid:
+                    Q += g * sg * (self._jacobian(bb, bodies.pose(jj), pt).T @ F)
+        return self._minv(uid) @ Q
 
     def _held_over_step(self, uid) -> np.ndarray:
         """(m,) bool: the movable joints of multibody ``uid`` a limit held over
@@ -1388,6 +1490,7 @@ class PybulletAdapter(EngineAdapter):
         if self._narrow:
             self._narrow_points(bodies, grav, required)
         rows = []
+        tcache: dict = {}  # the trial loads' dq per multibody (_trial_a_ext)
         for i in self._slow:
             b1, b2 = self._bodies[i]
             j1, j2 = self._slot[i]
@@ -1397,13 +1500,18 @@ class PybulletAdapter(EngineAdapter):
             v2 = poses[1].v + np.cross(poses[1].w, point - poses[1].com)
             v_rel = v1 - v2
             v_com_rel = poses[0].v - poses[1].v
-            if self._stopped[i]:  # a joint stopped at a limit: its impulse is no acceleration (_limits_engaged)
+            trial = self._trial_a_ext_ok(i)
+            if trial:  # this step's own, from the trial (_trial_a_ext): its torques and limits are in it
+                a_ext = self._trial_a_ext(bodies, i, point, tcache)
+            elif self._stopped[i]:  # a joint stopped at a limit: its impulse is no acceleration (_limits_engaged)
                 a_ext = self._last_a_ext[i].copy()
             elif self._have_last[i]:
                 a_ext = (v_rel - self._last_v_rel[i] - self._last_dv[i]) / self._dt
             else:
                 a_ext = grav * (self._free(b1) - self._free(b2))
             for b, pose, sign in ((b1, poses[0], 1.0), (b2, poses[1], -1.0)):
+                if trial:
+                    break
                 dq = self._torque_dq(b[0]) if self._b_art[self._slot[i, 0 if sign > 0 else 1]] else None
                 if dq is not None:  # this step's change of the joint torques (set_joint_torques)
                     a_ext = a_ext + sign * (self._jacobian(b, pose, point) @ dq)
@@ -1653,6 +1761,12 @@ class PybulletAdapter(EngineAdapter):
         required[self.manager.required_pairs] = True  # in contact, or a timing correction to remove
         bodies = self._read_bodies()
         self._check_advance(bodies)
+        self._cur_bodies = bodies
+        if self._art_slots:
+            self._account_multibody_work(bodies)
+        bal = self.manager._balance
+        if bal is not None:  # the last step's islands, before the anchoring moves any x
+            bal.close(self.manager, self.time - dt)
         grav = self._gravity()
         blocks = []
         if self._fast.size:
@@ -1710,6 +1824,8 @@ class PybulletAdapter(EngineAdapter):
             self._cross_dv(bodies, ph, F * dt, kin.W[hit])
             self.impulse[ph] += F * dt
             self._apply(bodies, ph, F, np.asarray(out.point, float)[hit])
+            if self._art_slots:
+                self._keep_generalized_loads(bodies, ph, F, np.asarray(out.point, float)[hit])
             couples = None
             if out.torque is not None:
                 couples = np.asarray(out.torque, float)[hit]
@@ -1778,9 +1894,9 @@ class PybulletAdapter(EngineAdapter):
         energy than ENERGY_GAIN_RTOL of its approach energy is flagged in its
         outside_validity and warned once per pair, in this step
         (engines._contacts.balance.DeepOnsets; ``deep_onsets`` counts them).
-        The island energy check leaves a multibody's links out (its drives
-        and joint limits do work its probe does not see) and the single
-        contact's COR check comes at the contact's end. Measured: the
+        The island energy check sees a multibody's contacts only from the
+        step after (it closes an island at the next step start) and the
+        single contact's COR check comes at the contact's end. Measured: the
         racecar's wheels, pybullet's 64-vertex hulls before they were taken
         for cylinders (narrow.as_cylinder), were found 1,024 m deep 5.8 mm
         above the floor and launched the car at 64 m/s with no warning."""
@@ -1794,15 +1910,14 @@ class PybulletAdapter(EngineAdapter):
         self._deep.check(self.manager, self._deep_mask, t0, why, self.pair_names, stacklevel=5)
 
     def _say_unchecked(self) -> None:
-        """Never silent (issue 13): the islands' energy check
-        (engines._contacts.balance) leaves out every island that holds a link
-        of a multibody, because :meth:`_energy_probe` gives no value for a
-        multibody's links (NaN for its key, B + uid: its joint motors, the
-        torques set on it and its limits do work the probe does not see). The
-        first time an island is left out, a RuntimeWarning names its pairs
-        and what still checks them; ``island_energy_unchecked`` lists every
-        such pair and ``manager._balance.unchecked`` counts the island
-        steps."""
+        """Never silent (issue 13): an island the energy check
+        (engines._contacts.balance) leaves out because :meth:`_energy_probe`
+        gives no value (NaN) for one of its bodies is said: the first time, a
+        RuntimeWarning names its pairs and what still checks them;
+        ``island_energy_unchecked`` lists every such pair and
+        ``manager._balance.unchecked`` counts the island steps. Until issue
+        13's multibody account (:meth:`_account_multibody_work`) every island
+        holding a link of a multibody was left out; none is now."""
         bal = self.manager._balance
         if bal is None or self._unchecked_said or not bal.unchecked_pairs:
             return
@@ -1922,12 +2037,112 @@ class PybulletAdapter(EngineAdapter):
                 dv += sign * np.cross(dw, self._pt[i] - bodies.com[j])
             self._last_dv[i] += dv
 
+    def _generalized_velocity(self, uid) -> np.ndarray:
+        """The multibody's velocity in the coordinates of calculateJacobian and
+        calculateMassMatrix now: a floating base's angular and linear velocity
+        in its own frame, then the movable joints' speeds (u, (6 +) m)."""
+        c = self.client
+        qd = [s[1] for s in pb.getJointStates(uid, self._movable[uid], physicsClientId=c)] if self._movable[uid] else []
+        if self._base_fixed(uid):
+            return np.asarray(qd, float)
+        R = _mat(pb.getBasePositionAndOrientation(uid, physicsClientId=c)[1])
+        v, w = pb.getBaseVelocity(uid, physicsClientId=c)
+        return np.concatenate([R.T @ np.asarray(w, float), R.T @ np.asarray(v, float), qd])
+
+    def _account_multibody_work(self, bodies: _Bodies) -> None:
+        """At a step start: add the work the last step's MSF loads did on each
+        multibody in pybullet's step to ``multibody_work`` [J], in its own
+        coordinates: Q . (u_start + u_end)/2 dt, Q = sum +-J^T F the loads'
+        generalized force (J at the step start, :meth:`_jacobian`), u the
+        generalized velocity (:meth:`_generalized_velocity`): pybullet's step
+        changes u by dt M^-1 (all forces) with M at the step start, so this is
+        exactly the kinetic energy the loads gave. The islands' energy check
+        of a multibody (:meth:`_energy_probe`) is the contacts' own balance:
+        this work less the energy of the timing corrections' velocity offset
+        (:meth:`_correction_energy`), plus their stored energy."""
+        u_now = {}
+        for uid in {int(self._b_uid[j]) for j in self._art_slots}:
+            if uid in self._movable:
+                u_now[uid] = self._generalized_velocity(uid)
+        loads, last = self._last_loads, self._last_gen
+        if loads is not None and last is not None:
+            ph, F, point, _couples, b0 = loads
+            for uid, (Q, u0) in last.items():
+                if uid in u_now and Q is not None:
+                    self.multibody_work[uid] = (self.multibody_work.get(uid, 0.0)
+                                                + float(Q @ (u0 + u_now[uid])) * 0.5 * self._dt)
+        self._last_gen = None
+        self._u_now = u_now
+
+    def _keep_generalized_loads(self, bodies: _Bodies, ph, F, point) -> None:
+        """Before pybullet's step: each multibody's generalized force of the
+        loads about to be applied and its velocity now (:meth:`_account_multibody_work`)."""
+        out = {}
+        for q, i in enumerate(np.asarray(ph, int).tolist()):
+            for side, sign in ((0, 1.0), (1, -1.0)):
+                j = int(self._slot[i, side])
+                if not self._b_art[j]:
+                    continue
+                uid = int(self._b_uid[j])
+                Qj = sign * (self._jacobian(self._body_list[j], bodies.pose(j), point[q]).T @ F[q])
+                out[uid] = Qj if uid not in out else out[uid] + Qj
+        self._last_gen = {uid: (Q, self._u_now.get(uid)) for uid, Q in out.items() if self._u_now.get(uid) is not None}
+
+    def _correction_energy(self, uid, bodies: _Bodies) -> float:
+        """The kinetic energy the manager's timing corrections J (a velocity
+        offset for one step, engines._contacts) add to multibody ``uid`` now
+        [J]: T(u) - T(u - du) = g . u - 1/2 g^T M^-1 g, g = sum_p +-J_p(point)^T J_p;
+        the free bodies' probe takes the same offset out of their velocities.
+        Returns (that energy [J], sum_p J_p . a_ext,p [W]): the island check's
+        semi-implicit allowance dt/2 |change of the second| (balance module:
+        the offset is removed at the next step's velocity, after a_ext acted
+        for a step, as a free body's probe allows dt/2 |m g . dv|)."""
+        mgr = self.manager
+        on = np.flatnonzero(np.any(mgr.J != 0.0, axis=1))
+        g, power = None, 0.0
+        for p in on.tolist():
+            for side, sign in ((0, 1.0), (1, -1.0)):
+                j = int(self._slot[p, side])
+                if not (self._b_art[j] and int(self._b_uid[j]) == uid):
+                    continue
+                gj = sign * (self._jacobian(self._body_list[j], bodies.pose(j), self._pt[p]).T @ mgr.J[p])
+                g = gj if g is None else g + gj
+                power += float(mgr.J[p] @ self._last_a_ext[p])
+        if g is None or uid not in self._u_now:
+            return 0.0, 0.0
+        return float(g @ self._u_now[uid]) - 0.5 * float(g @ np.linalg.solve(self._mass_matrix(uid), g)), power
+
+    def _multibody_kinetic(self, uid) -> tuple[float, float]:
+        """(kinetic energy [J], mass [kg]) of multibody ``uid`` now (every link:
+        1/2 m v^2 + 1/2 w.I w in its principal axes)."""
+        c = self.client
+        nj = pb.getNumJoints(uid, physicsClientId=c)
+        if uid not in self._mb_dyn:
+            self._mb_dyn[uid] = [(float(d[0]), np.asarray(d[2], float)) for d in
+                                 (pb.getDynamicsInfo(uid, link, physicsClientId=c) for link in range(-1, nj))]
+        _pos, orn = pb.getBasePositionAndOrientation(uid, physicsClientId=c)
+        v, w = pb.getBaseVelocity(uid, physicsClientId=c)
+        states = [(orn, v, w)]
+        if nj:
+            states += [(st[1], st[6], st[7]) for st in
+                       pb.getLinkStates(uid, list(range(nj)), computeLinkVelocity=1, physicsClientId=c)]
+        T = M = 0.0
+        for (m, I), (orn, v, w) in zip(self._mb_dyn[uid], states):
+            v, wb = np.asarray(v, float), _mat(orn).T @ np.asarray(w, float)
+            T += 0.5 * m * float(v @ v) + 0.5 * float(wb @ (I * wb))
+            M += m
+        return T, M
+
     def _energy_probe(self, keys, bodies=None):
         """Kinetic and potential energy [J], gravity's power m g . v [W] and mass [kg] (b,) each of
         the free bodies ``keys`` (slots), the manager's timing corrections J taken out
-        of their velocities (+J on body 1, -J on body 2 at the pair's point); NaN for a
-        multibody's links (engines._contacts.balance). bodies: the state read
-        (default: this step's, read at its start)."""
+        of their velocities (+J on body 1, -J on body 2 at the pair's point). A multibody's
+        key (B + uid; its motors, torques, limits and gravity do work the contacts do not
+        see): T its kinetic energy (the tolerance's scale), T + U the work its MSF loads did
+        on it (multibody_work, _account_multibody_work) less the energy of the timing
+        corrections' velocity offset, q sum J . a_ext (_correction_energy): the island's
+        E + S is then the contacts' own balance (engines._contacts.balance). bodies: the
+        state read (default: this step's, read at its start)."""
         bodies, mgr = self._cur_bodies if bodies is None else bodies, self.manager
         k = np.asarray(keys, dtype=np.int64)
         B = len(self._body_list)
@@ -1953,7 +2168,13 @@ class PybulletAdapter(EngineAdapter):
         T = 0.5 * mass * np.einsum("ki,ki->k", v, v) + 0.5 * np.einsum("ki,ki->k", wl * I, wl)
         U = -mass * (bodies.com[j] @ g)
         q = mass * (v @ g)
-        return np.where(link, np.nan, T), np.where(link, np.nan, U), np.where(link, np.nan, q), mass
+        if np.any(link):  # a multibody: its kinetic energy, and its account the work its contacts did on it
+            for r in np.flatnonzero(link).tolist():
+                uid = int(k[r]) - B
+                T[r], mass[r] = self._multibody_kinetic(uid)
+                O, q[r] = self._correction_energy(uid, bodies)
+                U[r] = self.multibody_work.get(uid, 0.0) - O - T[r]
+        return T, U, q, mass
 
     def _coupling_blocks(self, pp, pq):
         """The manager's coupling blocks (ContactManager.set_coupling) for free
