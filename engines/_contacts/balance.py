@@ -49,9 +49,12 @@ semi-implicit (symplectic) Euler step: it moves a body by dt v_end, not by
 the mean velocity, so its position leads the exact one by dt/2 times its
 velocity change within the step, and gravity's potential is off by
 dt/2 |m g . dv| per body (``q`` of the probe: the gravity power m g . v, so
-the bound is dt/2 |q_end - q_start|). Islands that are not all free bodies
-(links of chains: joint springs and drives do work the probe does not see)
-are not checked (the adapters give no probe value for them), nor is an
+the bound is dt/2 |q_end - q_start|). Islands holding a link of a chain
+(joint springs and drives do work the probe does not see) are not checked
+where the adapter gives no probe value for it (MuJoCo's adapter); pybullet's
+gives a multibody's account as the work its contacts' loads did on it less
+the timing corrections' offset energy, so its island's E + S is the
+contacts' own balance (engines.pybullet.adapter._energy_probe). Nor is an
 island whose body jumped between the step and the next step start (placed
 or reset by the caller, seen by the adapters' jump detection:
 :meth:`IslandBalance.forget`; the jet's pool parks a particle whose impact
