@@ -406,6 +406,8 @@ def _name(b):
 
 
 def _plain(v):
+    if type(v) is np.ndarray:  # the probes' (3,) arrays, twice per record: tolist is item at ndim 0
+        return v.tolist()
     a = np.asarray(v)
     return a.tolist() if a.ndim else a.item() if hasattr(a, "item") else v
 
