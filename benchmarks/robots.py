@@ -179,6 +179,61 @@ def rest_sweep(name: str, seed: int, steps: int = STEPS, mu=None) -> dict:
             "rest_unexplained_first": [list(g) for g in account.gains[:3]], "jumps": adapter.jumps}
 
 
+#: the gymnasium walkers of :func:`walker_rest` (their own XML, time step, frame_skip and integrator)
+WALKERS = ("Ant-v5", "Humanoid-v5", "Walker2d-v5")
+#: walker_rest's env steps of seeded random actions, then of zero actions, and its action seed
+WALKER_STEPS, WALKER_SEED = 200, 5
+
+
+def walker_rest(name: str, steps: int = WALKER_STEPS, seed: int = WALKER_SEED) -> dict:
+    """A gymnasium walker as a user runs it, MSF on every body-floor pair
+    (scripts/gym_check.py's ``gym_msf``) against MuJoCo's own contact:
+    ``steps`` env steps of seeded random actions in [-1, 1], then ``steps``
+    of zero actions (the walker comes to rest, lying or standing). The CPU
+    time (``time.process_time``) per ``mj_step`` (env step / frame_skip),
+    medians over each phase: what an RL user pays per step moving and at
+    rest. Not profiled: cProfile multiplies the resting step's cost (many
+    small Python calls) about fourfold (docs/benchmarks.md, robots)."""
+    import warnings
+
+    from engines.mujoco import MujocoAdapter, installed
+    from scripts.gym_check import gym_msf
+
+    out = {"name": "robots-walker-rest", "engine": "mujoco", "model": name, "steps": steps, "seed": seed}
+    for mode in ("msf", "builtin"):
+        env, model, data, pairs = gym_msf(name)
+        adapter = None
+        if mode == "msf":
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")  # the adapter's notes on the model (RK4 on links): not timed
+                adapter = MujocoAdapter(model, data, pairs)
+        rng = np.random.default_rng(seed)
+        per = np.empty(2 * steps)
+        with installed(adapter) if adapter is not None else _nothing():
+            for i in range(2 * steps):
+                a = rng.uniform(-1.0, 1.0, env.action_space.shape) if i < steps else np.zeros(env.action_space.shape)
+                t = time.process_time()
+                env.step(a)
+                per[i] = time.process_time() - t
+        per /= env.unwrapped.frame_skip
+        out[f"{mode}_moving_step_median_s"] = float(np.median(per[:steps]))
+        out[f"{mode}_rest_step_median_s"] = float(np.median(per[steps:]))
+        out[f"{mode}_rest_step_mean_s"] = float(np.mean(per[steps:]))
+        if adapter is not None:
+            out["msf_records"] = len(adapter.records)
+        env.close()
+    out["dt"], out["frame_skip"] = float(model.opt.timestep), int(env.unwrapped.frame_skip)
+    out["ratio_rest_msf_over_builtin"] = out["msf_rest_step_median_s"] / out["builtin_rest_step_median_s"]
+    out["load_avg_1min"] = os.getloadavg()[0]
+    return out
+
+
+def _nothing():
+    import contextlib
+
+    return contextlib.nullcontext()
+
+
 def _describe(r: dict) -> list[str]:
     return [f"  rest (RestEnergy): msf {r['msf_rest_energy_J'][0]:.4g} -> {r['msf_rest_energy_J'][1]:.4g} J, limits took "
             f"{r['msf_rest_limits_absorbed_J']:.3g} J, MuJoCo's own contacts {r['msf_rest_own_contacts_absorbed_J']:.3g} J, "
@@ -205,4 +260,11 @@ def run(quick: bool = False) -> list[dict]:
             log(f"  {r['model']} torque seed {seed}: rest {sw['rest_energy_J'][0]:.4g} -> {sw['rest_energy_J'][1]:.4g} J, "
                 f"{sw['rest_unexplained_steps']} steps above the bound (largest {sw['rest_unexplained_max_J']:.3g} J)")
             out.append(sw)
+    for name in WALKERS:
+        w = walker_rest(name, QUICK_STEPS if quick else WALKER_STEPS)
+        log(f"  {name} (gymnasium, MSF on every body-floor pair), CPU per mj_step, medians: MSF moving "
+            f"{w['msf_moving_step_median_s'] * 1e3:.2f} ms, at rest {w['msf_rest_step_median_s'] * 1e3:.2f} ms; built-in "
+            f"{w['builtin_moving_step_median_s'] * 1e3:.3f} / {w['builtin_rest_step_median_s'] * 1e3:.3f} ms "
+            f"(rest ratio {w['ratio_rest_msf_over_builtin']:.0f}, load {w['load_avg_1min']:.1f})")
+        out.append(w)
     return out

@@ -70,7 +70,7 @@ import numpy as np
 
 from msf_contact._validate import ValidityWarning
 
-from .state import ENERGY_GAIN_RTOL, V_ONSET_MIN, elastic_energy
+from .state import ENERGY_GAIN_RTOL, V_ONSET_MIN, TakenOnset, elastic_energy
 
 #: A gain this many times the largest one warned so far is warned again: the first gain of a run is often
 #: small (a contact found a few um deep), and a later gain of joules must not hide behind it on stderr
@@ -133,7 +133,8 @@ class IslandBalance:
         gid = mgr._group_of[pp[rows]]
         for g in np.unique(gid):
             sel = np.flatnonzero(gid == g)
-            o = {key: arr[mgr._pos[pp[rows[sel]]]] for key, arr in mgr._onset[g].items()}
+            at = mgr._pos[pp[rows[sel]]]
+            o = TakenOnset(mgr._onset[g], lambda arr: arr[at])
             out[rows[sel]] += elastic_energy(mgr._groups[g], xe[sel], o)
         return out
 

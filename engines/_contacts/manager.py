@@ -26,7 +26,7 @@ from .islands import TOUCH_TOL, island_lever, islands, step_island
 from .resting import settle_island
 from .state import (
     L_G0, L_ON, L_W01, L_W11, L_XREF, NL, NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES,
-    ENERGY_APPROACH_RTOL, approach_of_energy, elastic_energy, residual_indentation,
+    ENERGY_APPROACH_RTOL, TakenOnset, approach_of_energy, elastic_energy, residual_indentation,
     _cross, _dot, _name, _tangent_basis,
 )
 
@@ -441,7 +441,8 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         rows = np.flatnonzero((self._group_of == g) & self.active & (self.x > 0.0))
         if rows.size == 0:
             return
-        o = {key: arr[self._pos[rows]] for key, arr in self._onset[g].items()}
+        at = self._pos[rows]
+        o = TakenOnset(self._onset[g], lambda arr: arr[at])
         x = self.x[rows]
         E = elastic_energy(before, x, o)
         moved = np.abs(elastic_energy(law, x, o) - E) > ENERGY_APPROACH_RTOL * E  # a pose that changed nothing: skip
@@ -745,7 +746,8 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             F = np.zeros(r.size)
             for g in np.unique(self._group_of[pair[r]]):
                 sel = self._group_of[pair[r]] == g
-                o = {key: arr[self._pos[pair[r][sel]]] for key, arr in self._onset[g].items()}
+                at = self._pos[pair[r][sel]]
+                o = TakenOnset(self._onset[g], lambda arr: arr[at])
                 F[sel] = self._groups[g].contact_normal_force(xr[sel], np.zeros(int(sel.sum())), o)
             vx = np.sqrt(np.maximum(F, 0.0) * xr * nWn)
             rest[r] = vn <= SETTLED_SPEED_RATIO * vx

@@ -6,6 +6,7 @@ numpy reference, :mod:`.reference`, and the compiled kernel,
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 
 import numpy as np
 
@@ -486,6 +487,34 @@ _GL_S, _GL_W = np.polynomial.legendre.leggauss(8)
 _GL_S, _GL_W = 0.5 * (_GL_S + 1.0), 0.5 * _GL_W
 
 
+class TakenOnset(Mapping):
+    """The onset constants ``src`` (a mapping key -> array) with ``take`` applied to each
+    value when the law reads it (and kept): the values a dict comprehension
+    {key: take(val)} would hold, made only for the keys read (a law's normal force
+    reads two of the onset's keys; :func:`elastic_energy` is called for every law group
+    of an island each step)."""
+
+    __slots__ = ("_src", "_take", "_done")
+
+    def __init__(self, src, take):
+        self._src, self._take, self._done = src, take, {}
+
+    def __getitem__(self, key):
+        done = self._done
+        if key not in done:
+            done[key] = self._take(self._src[key])
+        return done[key]
+
+    def __iter__(self):
+        return iter(self._src)
+
+    def __len__(self) -> int:
+        return len(self._src)
+
+    def __contains__(self, key) -> bool:
+        return key in self._src
+
+
 def elastic_energy(law, x, onset) -> np.ndarray:
     """Elastic energy of the law's normal force at overlap x [m] (k,): int_0^x
     F_n(x', 0) dx' [J] (the rate-free force is the elastic part, as the
@@ -495,7 +524,7 @@ def elastic_energy(law, x, onset) -> np.ndarray:
     if x.size == 0:
         return np.zeros(0)
     xs = x[:, None] * _GL_S[None, :] ** 2  # (k, 8)
-    o = {key: np.repeat(np.asarray(val, dtype=float), _GL_S.size) for key, val in onset.items()}
+    o = TakenOnset(onset, lambda val: np.repeat(np.asarray(val, dtype=float), _GL_S.size))
     F = law.contact_normal_force(xs.reshape(-1), np.zeros(xs.size), o).reshape(xs.shape)
     return np.sum(F * (2.0 * x[:, None] * _GL_S[None, :]) * _GL_W[None, :], axis=1)
 
@@ -559,9 +588,12 @@ def relax(mgr, p, x0, x_eng, n, v, settle, io=None) -> np.ndarray:
     gid = mgr._group_of[p[mv]]
     for g in np.unique(gid):
         sel = mv[gid == g]
-        o = {key: arr[mgr._pos[p[sel]]] for key, arr in mgr._onset[g].items()}
+        # both ends of each move in one call (each row's energy is its own: the same values)
+        at = mgr._pos[p[sel]]
+        o = TakenOnset(mgr._onset[g], lambda arr: arr[np.concatenate([at, at])])
         law, xa = mgr._groups[g], np.maximum(x0[sel], 0.0)
-        dS[sel] = elastic_energy(law, np.maximum(x0[sel] + dx[sel], 0.0), o) - elastic_energy(law, xa, o)
+        E = elastic_energy(law, np.concatenate([np.maximum(x0[sel] + dx[sel], 0.0), xa]), o)
+        dS[sel] = E[:sel.size] - E[sel.size:]
     isl = np.repeat(np.arange(io.size - 1), np.diff(io))
     gain = np.bincount(isl, np.where(up, dS, 0.0), minlength=io.size - 1)
     give = -np.bincount(isl, np.where(up, 0.0, dS), minlength=io.size - 1)

@@ -104,6 +104,7 @@ import ctypes
 import dataclasses
 import math
 import warnings
+from types import SimpleNamespace
 
 import mujoco
 import numpy as np
@@ -545,6 +546,9 @@ class MujocoAdapter(EngineAdapter):
 
             self._narrow = NarrowPhase(model, [(g1, g2) for g1, g2, *_ in self._narrow_pairs])
             self._narrow_key = None
+            self._narrow_nb = None  # _narrow_consts
+            self._pose_due: list = []  # _pose_lines
+            self._lazy_pose = True  # False: every line pair's ends posed in _narrow_points (tests compare the two)
             self._narrow_found: list = []
             from engines._contacts.compiled import kernel_law
             from engines._narrow import LawBank
@@ -1198,23 +1202,26 @@ class MujocoAdapter(EngineAdapter):
         if key == self._narrow_key:
             return self._narrow_found
         m = self.model
+        nb = self._narrow_consts()
         # margin: what the surfaces can close in a step at the bodies' speeds (x2), at least 1 mm
+        # (pair by pair, elementwise: the same float operations as one pair at a time)
         lin, ang = np.linalg.norm(d.cvel[:, 3:], axis=1), np.linalg.norm(d.cvel[:, :3], axis=1)
+        v = lin[nb.b1] + ang[nb.b1] * nb.rb1 + lin[nb.b2] + ang[nb.b2] * nb.rb2
+        reach = np.maximum(CANDIDATE_FACTOR * (v * self.timestep + float(np.linalg.norm(m.opt.gravity))
+                                               * self.timestep ** 2), 1e-3)
         margin = np.zeros(self._narrow.geoms.size)
-        for g1, g2, *_ in self._narrow_pairs:
-            b1, b2 = m.geom_bodyid[g1], m.geom_bodyid[g2]
-            v = lin[b1] + ang[b1] * m.geom_rbound[g1] + lin[b2] + ang[b2] * m.geom_rbound[g2]
-            reach = max(CANDIDATE_FACTOR * (v * self.timestep + float(np.linalg.norm(m.opt.gravity))
-                                            * self.timestep ** 2), 1e-3)
-            for g in (g1, g2):
-                j = int(np.searchsorted(self._narrow.geoms, g))
-                margin[j] = max(margin[j], reach)
+        np.maximum.at(margin, nb.j1, reach)
+        np.maximum.at(margin, nb.j2, reach)
         raw = self._narrow.detect(d, margin)
         busy = np.zeros(len(self._pairs), bool)
         busy[self.manager.required_pairs] = True
         out = []
+        # the line pairs whose ends' poses (and onset masses) wait for _slow_rows: only the ends of a
+        # candidate row need them this step (_pose_lines); outside the hook (separating) at once
+        lazy = self._in_hook and self._lazy_pose
+        self._pose_due = []
         for k, ((g1, g2, s1, s2, match), (x, pts, nrm)) in enumerate(zip(self._narrow_pairs, raw)):
-            first = next(q.index for q in self._pairs if q.narrow == k)
+            first = nb.first[k]
             if match.n == 1 and x.size and (s1 is not None and hasattr(s1, "support")
                                             or s2 is not None and hasattr(s2, "support")):
                 # a smooth mesh's one contact: the smooth surface's point, not the deepest vertex's
@@ -1225,18 +1232,22 @@ class MujocoAdapter(EngineAdapter):
                                         s2, (d.geom_xpos[g2], d.geom_xmat[g2].reshape(3, 3)), float(x[j]), pts[j],
                                         nrm[j])
                 x, pts, nrm = np.array([xj]), pj[None], nrm[j:j + 1]
-            rot1 = d.geom_xmat[g1].reshape(3, 3)
-            local = (pts - d.geom_xpos[g1]) @ rot1
             if k in self._box:
                 out.append(self._box_slots(k, first, busy[first:first + match.n]))
                 continue
             mode = self._line_mode(k, busy[first:first + match.n]) if k in self._line else None
             if mode == "line":
-                out.append(self._line_slots(k, match.n))
+                if lazy:
+                    out.append(self._line_points(k, match.n))
+                    self._pose_due.append(k)
+                else:
+                    out.append(self._line_slots(k, match.n))
                 continue
             if mode == "ring":  # a cylinder on its rim (engines._narrow.RimRing)
                 out.append(self._ring_slots(k, first))
                 continue
+            rot1 = d.geom_xmat[g1].reshape(3, 3)
+            local = (pts - d.geom_xpos[g1]) @ rot1
             slots = match.assign(local, x, busy[first:first + match.n])
             per = [None] * match.n
             for j, s_ in enumerate(slots):
@@ -1398,13 +1409,57 @@ class MujocoAdapter(EngineAdapter):
         d = self.data
         g1, g2, s1, _, match = self._narrow_pairs[k]
         rot2 = d.geom_xmat[g2].reshape(3, 3)
-        first = next(q.index for q in self._pairs if q.narrow == k)
+        first = self._narrow_consts().first[k]
         mgr = self.manager
         moving = mgr.active[first:first + match.n] & ~mgr.settled[first:first + match.n]
         if st.update(d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3), d.geom_xpos[g2], rot2[:, 2], busy,
                      self.pairs[first].law, moving):
             match.anchor[:] = np.nan  # the slots start afresh in the other mode
         return st.mode
+
+    def _narrow_consts(self) -> SimpleNamespace:
+        """Per narrow geom pair, fixed with the model: its first pair index (first), its
+        bodies (b1, b2), bounding radii (rb1, rb2) and geoms' places in the narrow phase's
+        geoms (j1, j2); built on first use."""
+        nb = self._narrow_nb
+        if nb is None:
+            m = self.model
+            g1 = np.array([q[0] for q in self._narrow_pairs], dtype=np.int64)
+            g2 = np.array([q[1] for q in self._narrow_pairs], dtype=np.int64)
+            first = [next(q.index for q in self._pairs if q.narrow == k) for k in range(len(self._narrow_pairs))]
+            nb = self._narrow_nb = SimpleNamespace(
+                first=first, b1=m.geom_bodyid[g1], b2=m.geom_bodyid[g2], rb1=m.geom_rbound[g1].copy(),
+                rb2=m.geom_rbound[g2].copy(), j1=np.searchsorted(self._narrow.geoms, g1),
+                j2=np.searchsorted(self._narrow.geoms, g2))
+        return nb
+
+    def _line_points(self, k: int, n_slots: int) -> list:
+        """:meth:`_line_slots`' slots (x, point, normal) without the ends' poses, which
+        :meth:`_pose_lines` gives the pairs that need them (SideLine.slots: the same
+        arithmetic)."""
+        ends = self._line[k].ends
+        per = [None] * n_slots
+        for i in range(2):
+            x = float(ends.x[i])
+            per[i] = (x, ends.lowest[i] + 0.5 * x * ends.normal, ends.normal.copy())
+        return per
+
+    def _pose_lines(self, rows) -> None:
+        """The ends' poses and onset masses (:meth:`_line_slots`) of the line pairs found
+        by this step's :meth:`_narrow_points` of which a slot is among the candidate
+        ``rows`` (pair indices): a law whose row is not a candidate is read by nothing in
+        this step (the kernel's constants and the onset are those of candidate rows; a
+        contact in progress is one), and SideEndLaw.set_pose depends on the pose alone, so
+        the next step that needs it gives it the same constants. Saves the Jacobians,
+        the mass matrix solve and the law refresh of every end away from the floor."""
+        due, self._pose_due = self._pose_due, []
+        if not due:
+            return
+        nb = self._narrow_nb
+        for k in due:
+            n = self._narrow_pairs[k][4].n
+            if any(nb.first[k] + s in rows for s in range(min(n, 2))):
+                self._line_slots(k, n)
 
     def _line_slots(self, k: int, n_slots: int) -> list:
         """Slots 0 and 1 of narrow geom pair k as its side's two ends
@@ -1470,26 +1525,26 @@ class MujocoAdapter(EngineAdapter):
         return bx.slots(Jn @ MJ.T, moving, mgr.refresh_law)
 
     def _narrow_detection(self, p: _Pair) -> Detection:
-        """Detection of narrow pair p's slot from MuJoCo's narrow phase; until
-        the contact's onset the slot's law follows the curvature at its point
-        (:meth:`_narrow_law`); a slot MuJoCo no longer lists is a gap beyond
-        the detection margin."""
+        """Detection of narrow pair p's slot from MuJoCo's narrow phase (:meth:`_narrow_row`)."""
+        x, n, point, p1, p2 = self._narrow_row(p)
+        return Detection(np.array([x]), n[None], point[None], p1[None], p2[None],
+                         np.full((1, 2), math.inf), np.full((1, 2), math.inf))
 
-        d = self.data
+    def _narrow_row(self, p: _Pair) -> tuple:
+        """(x [m], normal (3,), point [m] (3,), point1, point2 [m] (3,)) of narrow pair p's
+        slot from MuJoCo's narrow phase, each array the caller's own; until the contact's
+        onset the slot's law follows the curvature at its point (:meth:`_narrow_law`); a
+        slot MuJoCo no longer lists is a gap beyond the detection margin."""
         found = self._narrow_points()[p.narrow][p.slot]
         if found is None:  # beyond the detection margin: a gap larger than a step can close
-            x, point, n = -1.0, d.geom_xpos[p.geom1].copy(), np.array([0.0, 0.0, 1.0])
-            det = Detection(np.array([x]), n[None], point[None], point[None], point[None],
-                            np.full((1, 2), math.inf), np.full((1, 2), math.inf))
-            return det
+            point = self.data.geom_xpos[p.geom1].copy()
+            return -1.0, np.array([0.0, 0.0, 1.0]), point, point.copy(), point.copy()
         x, point, n = found
         half = 0.5 * max(-x, 0.0)  # across a gap each body's point is on its own surface
         p1, p2 = point + half * n, point - half * n
-        det = Detection(np.array([x]), n[None].copy(), point[None].copy(), p1[None], p2[None],
-                        np.full((1, 2), math.inf), np.full((1, 2), math.inf))
         if not self.manager.active[p.index]:  # about to touch: the law for the curvature there
             self._narrow_law(p, point, n, x)
-        return det
+        return x, n.copy(), point.copy(), p1, p2
 
     def _narrow_law(self, p: _Pair, point, n, x: float = 0.0) -> None:
         """Give narrow pair p's slot the law for the curvature of both surfaces
@@ -1880,13 +1935,20 @@ class MujocoAdapter(EngineAdapter):
         points = {}
         jacs = []
         dq_known = self._known.change() if self._known is not None else None
+        held = self.manager._held_force
+        weld = self.model.body_weldid
         for p in self._slow:
-            det = self._geometry(p)
-            x, n, point = float(det.x[0]), det.normal[0], det.point[0]
-            # each body's Jacobian at its own surface point (they differ across a gap)
-            p1, p2 = det.point1[0].copy(), det.point2[0].copy()
+            if p.kind2 == "narrow":
+                x, n, point, p1, p2 = self._narrow_row(p)
+            else:
+                det = self._geometry(p)
+                x, n, point = float(det.x[0]), det.normal[0], det.point[0]
+                p1, p2 = det.point1[0].copy(), det.point2[0].copy()
+            # each body's Jacobian at its own surface point (they differ across a gap); a body
+            # welded to the world has none (J - 0 = J: left out)
             J = self._jacobian(p.body1, p1, self._jac).copy()
-            J -= self._jacobian(p.body2, p2, self._jac2)
+            if weld[p.body2]:
+                J -= self._jacobian(p.body2, p2, self._jac2)
             v_rel = J @ d.qvel
             i = p.index
             jacs.append((i, J))
@@ -1896,11 +1958,12 @@ class MujocoAdapter(EngineAdapter):
                 a_ext = self._first_step_a_ext(p)
             if dq_known is not None and self._have_last[i]:  # this step's drives, user and constraint forces
                 a_ext = a_ext + J @ dq_known
-                Fh = self.manager._held_force[i]
-                if np.any(Fh):  # its own held force left its a_ext: not the rows' change of its response
+                Fh = held[i]
+                if Fh.any():  # its own held force left its a_ext: not the rows' change of its response
                     a_ext = a_ext - J @ self._known.held_change(J.T @ Fh)
             self._last_v[i], self._last_dv[i], self._have_last[i] = v_rel, 0.0, True
-            reach = float(closing_distance(-float(v_rel @ n), -float(a_ext @ n), dt, CANDIDATE_FACTOR))
+            # closing_distance in Python floats (the same operations)
+            reach = CANDIDATE_FACTOR * (max(-float(v_rel @ n), 0.0) * dt + 0.5 * max(-float(a_ext @ n), 0.0) * dt * dt)
             if x <= -(reach + self._push[i]) and not required[i]:
                 continue
             # W = J M^-1 J^T, W_com = J_c M^-1 J^T
@@ -1910,11 +1973,14 @@ class MujocoAdapter(EngineAdapter):
             if self._known is not None and not self.manager.active[i]:  # a possible onset (_check_damped_onsets)
                 self._damped_share[i] = self._known.damped_share(J, n)
             Jc = self._jacobian(p.body1, d.xipos[p.body1], self._jac).copy()
-            Jc -= self._jacobian(p.body2, d.xipos[p.body2], self._jac2)
+            if weld[p.body2]:
+                Jc -= self._jacobian(p.body2, d.xipos[p.body2], self._jac2)
             v_com = Jc @ d.qvel
             W_com = Jc @ MinvJT.T
             rows.append((i, x, n, point, v_rel, v_com, W, W_com, a_ext))
             points[i] = (p1, p2, J)
+        if self._narrow is not None:
+            self._pose_lines(points)
         if not rows:
             return None, points, jacs
         cols = list(zip(*rows))

@@ -1,0 +1,75 @@
+"""The cheaper resting step of robot models changes no result (issue 13, the
+walkers' rest cost): MujocoAdapter poses a lying side's ends
+(SideEndLaw.set_pose, their onset masses, the law refresh) only for the
+line pairs with a candidate row in the step (_pose_lines), and
+elastic_energy takes only the onset keys a law reads (state.TakenOnset).
+Compared here bit for bit against every pair posed in every step, on a
+gymnasium walker (its own XML, RK4, frame_skip) moving and then lying at
+rest."""
+import warnings
+
+import numpy as np
+import pytest
+
+from engines._contacts.state import TakenOnset, elastic_energy
+from msf_contact import ContactPair, Curvature, make_law, preset
+
+gym = pytest.importorskip("gymnasium")  # gymnasium[mujoco] is in the test extra: never skipped in CI
+
+TORQUE_STEPS, REST_STEPS = 30, 20  # env steps (x4 mj_steps): Walker2d falls within the torques and lies still
+
+
+def _run(lazy: bool):
+    from engines.mujoco import MujocoAdapter, installed
+    from scripts.gym_check import gym_msf
+
+    env, model, data, pairs = gym_msf("Walker2d-v5")
+    rng = np.random.default_rng(5)
+    traj = []
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ad = MujocoAdapter(model, data, pairs)
+        ad._lazy_pose = lazy
+        posed = []
+        line_slots = ad._line_slots
+        ad._line_slots = lambda k, n: posed.append(k) or line_slots(k, n)
+        with installed(ad):
+            for i in range(TORQUE_STEPS + REST_STEPS):
+                a = rng.uniform(-1, 1, env.action_space.shape) if i < TORQUE_STEPS else np.zeros(env.action_space.shape)
+                env.step(a)
+                traj.append(np.concatenate([data.qpos, data.qvel]))
+    env.close()
+    return np.array(traj), [repr(r) for r in ad.records], len(posed), ad
+
+
+def test_lazy_line_poses_change_no_bit():
+    t_lazy, rec_lazy, n_lazy, ad = _run(True)
+    t_all, rec_all, n_all, _ = _run(False)
+    assert rec_lazy, "the walker's sides must have touched the floor"
+    assert any(ad._line[k].mode == "line" for k in ad._line), "a side must lie on the floor at the end"
+    np.testing.assert_array_equal(t_lazy, t_all)  # positions and velocities, every env step
+    assert rec_lazy == rec_all
+    assert n_lazy < n_all  # the lazy path left out the poses nothing read
+
+
+def test_taken_onset_takes_only_what_the_law_reads():
+    law = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(0.02))
+    k = 5
+    rng = np.random.default_rng(0)
+    onset = {"E": rng.uniform(1e6, 2e6, k), "eta_E": rng.uniform(1e2, 1e3, k), "G": rng.uniform(1e5, 1e6, k),
+             "eta_Gy": np.ones(k), "eta_Gz": np.ones(k), "omega_x": np.ones(k)}
+    taken = []
+    o = TakenOnset(onset, lambda v: taken.append(1) or v * 1.0)
+    assert set(o) == set(onset) and "E" in o and "nothing" not in o and len(o) == len(onset)
+    x = rng.uniform(1e-5, 1e-3, k)
+    E = elastic_energy(law, x, o)
+    assert 0 < len(taken) < len(onset)  # wrapped again in elastic_energy, still read key by key
+    taken.clear()
+    # the same as the dict of every key (elastic_energy's former form), value for value
+    xs = x[:, None] * np.linspace(0.1, 1.0, 8)[None, :] ** 2
+    o_all = {key: np.repeat(val, 8) for key, val in onset.items()}
+    o_lazy = TakenOnset(onset, lambda v: taken.append(1) or np.repeat(v, 8))
+    np.testing.assert_array_equal(law.contact_normal_force(xs.reshape(-1), np.zeros(xs.size), o_lazy),
+                                  law.contact_normal_force(xs.reshape(-1), np.zeros(xs.size), o_all))
+    assert 0 < len(taken) < len(onset)  # a normal force reads E and eta_E only
+    assert np.all(E > 0.0)
