@@ -101,3 +101,21 @@ def test_a_compound_left_partly_uncovered_is_refused():
             PybulletAdapter(c, [PairSpec((ball, -1), (base, -1, k), _law()) for k in (0, 1, 2)])
     finally:
         pb.disconnect(c)
+
+
+def test_a_pair_whose_points_pybullet_would_give_for_the_whole_compound_is_refused():
+    """A capsule against a small box of a compound (too small to be its floor,
+    so the pair's points would come from getClosestPoints, which answers for
+    every shape of the link at once)."""
+    c = scenes.new_client(1e-4)
+    try:
+        sh = pb.createCollisionShapeArray([pb.GEOM_BOX, pb.GEOM_BOX], halfExtents=[SLAB_HALF, (0.005, 0.005, 0.005)],
+                                          collisionFramePositions=[SLAB_POS, (0.0, 0.0, -0.005)], physicsClientId=c)
+        base = pb.createMultiBody(0.0, sh, basePosition=[0, 0, 0], physicsClientId=c)
+        cap = pb.createMultiBody(0.1, pb.createCollisionShape(pb.GEOM_CAPSULE, radius=R, height=0.1, physicsClientId=c),
+                                 basePosition=[0, 0, 0.1], physicsClientId=c)
+        with pytest.raises(ValueError, match=r"on a link of several collision shapes: its points come from "
+                                             r"pybullet's getClosestPoints"):
+            PybulletAdapter(c, [PairSpec((cap, -1), (base, -1, k), _law()) for k in (0, 1)])
+    finally:
+        pb.disconnect(c)
