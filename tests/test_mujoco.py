@@ -425,7 +425,7 @@ def test_bad_input_is_refused_with_names():
     with pytest.raises(ValueError, match="exclusive"):
         run_impact(law, ball(), PLATE, V, builtin={"solref": (0.01, 1.0)})
     model, data = scenes.ball_on_plate(ball(), V)
-    with pytest.raises(ValueError, match="'bal'.*not a geom name"):
+    with pytest.raises(ValueError, match="'bal' is neither a geom name, a geom id nor a body name"):
         MujocoAdapter(model, data, [PairSpec("bal", "plate", law)])
     with pytest.raises(ValueError, match="body1 = 'plate' is a plane"):
         MujocoAdapter(model, data, [PairSpec("plate", "ball", law)])

@@ -497,12 +497,24 @@ def held_forces(manager, pair, t_next: float) -> np.ndarray:
     return manager.held(pair, t_next)
 
 
+def _per_geom(table: dict, model, g: int, default=None):
+    """A per-geom setting (edge_radii, mesh_slots) of geom g: keyed by its name, or by its id (an unnamed
+    geom, e.g. one a body-name PairSpec reaches)."""
+    name = model.geom(g).name
+    if name and name in table:
+        return table[name]
+    return table.get(g, default)
+
+
 class MujocoAdapter(EngineAdapter):
     """Force laws between pairs of MuJoCo geoms; see the module docstring.
 
-    model, data: the MuJoCo model and its data. pairs: PairSpec with
-    ``body1`` a sphere geom name and ``body2`` a sphere, plane or box geom
-    name (a box only across a face). compiled: the free group's per-step
+    model, data: the MuJoCo model and its data. pairs: PairSpec whose
+    ``body1`` and ``body2`` are each a geom name, a geom id or a body name
+    (standing for each of the body's geoms that can collide: one pair per
+    geom pair); body1 the curved one (a sphere, capsule, cylinder,
+    ellipsoid, box or mesh), body2 any of those or a plane. edge_radii,
+    mesh_slots: per geom name or id. compiled: the free group's per-step
     work in :mod:`engines.mujoco._kernels` (default) or in numpy (the
     reference implementation; the same results to round-off).
     """
@@ -537,9 +549,10 @@ class MujocoAdapter(EngineAdapter):
         self._pairs = []
         expanded = []
         for i, p in enumerate(pairs):
-            for q in self._resolve(i, p, len(self._pairs)):
-                self._pairs.append(q)
-                expanded.append(p)
+            for pg in self._geom_pairs(i, p):
+                for q in self._resolve(i, pg, len(self._pairs)):
+                    self._pairs.append(q)
+                    expanded.append(pg)
         self._narrow = None
         if self._narrow_pairs:
             from engines.mujoco.narrow import NarrowPhase
@@ -630,7 +643,7 @@ class MujocoAdapter(EngineAdapter):
         self.manager.set_orientation_free([[_orientation_free(model, p.geom1, p.body1, p.fixed1),
                                             _orientation_free(model, p.geom2, p.body2, p.fixed2)]
                                            for p in self._pairs])
-        self.pair_names = [(str(p.body1), str(p.body2)) for p in self.pairs]  # one per contact slot
+        self.pair_names = [(self._side_name(p.body1), self._side_name(p.body2)) for p in self.pairs]  # per slot
         self.manager.pair_names = self.pair_names
         self._sensors = self._msf_sensors()
         # run-time switch per pair (set_mode): 0 MSF, 1 the engine's own contact, 2 both off;
@@ -745,12 +758,54 @@ class MujocoAdapter(EngineAdapter):
 
     # -- set-up ----------------------------------------------------------------
     def _geom(self, name, which: str, i: int) -> int:
-        g = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_GEOM, str(name)) if isinstance(name, str) else -1
+        """The geom id of a PairSpec side: a geom name or a geom id (:meth:`_geom_pairs` has turned a body
+        name into its geoms' ids)."""
+        m = self.model
+        if isinstance(name, (int, np.integer)) and not isinstance(name, bool):
+            if not 0 <= int(name) < m.ngeom:
+                raise ValueError(f"pair {i}: {which} = {name!r} is not a geom id of the model (0 <= id < "
+                                 f"ngeom = {m.ngeom})")
+            return int(name)
+        g = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, str(name)) if isinstance(name, str) else -1
         if g < 0:
-            names = [self.model.geom(k).name for k in range(self.model.ngeom)]
-            raise ValueError(f"pair {i}: {which} = {name!r} is not a geom name of the model "
-                             f"(geoms: {', '.join(repr(n) for n in names if n) or 'none named'})")
+            names = [m.geom(k).name for k in range(m.ngeom)]
+            bodies = [m.body(k).name for k in range(1, m.nbody)]
+            raise ValueError(f"pair {i}: {which} = {name!r} is neither a geom name, a geom id nor a body name of "
+                             f"the model (geoms: {', '.join(repr(n) for n in names if n) or 'none named'}; bodies: "
+                             f"{', '.join(repr(n) for n in bodies if n) or 'none named'})")
         return g
+
+    def _geom_pairs(self, i: int, p: PairSpec) -> list[PairSpec]:
+        """PairSpec i with each side a geom: a geom name or id is kept; a body name (that is no geom's name)
+        stands for each of the body's geoms that can collide (contype or conaffinity nonzero), so a model
+        whose geoms carry no names (gymnasium's, most robot files) is reachable by its body names: one pair
+        per geom pair, in the body's geom order, with the PairSpec's law and tangential mode."""
+        m = self.model
+        sides = []
+        for which, name in (("body1", p.body1), ("body2", p.body2)):
+            if isinstance(name, str) and mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_GEOM, name) < 0:
+                b = mujoco.mj_name2id(m, mujoco.mjtObj.mjOBJ_BODY, name)
+                if b >= 0:
+                    gs = [g for g in range(int(m.body_geomadr[b]), int(m.body_geomadr[b]) + int(m.body_geomnum[b]))
+                          if m.geom_contype[g] or m.geom_conaffinity[g]]
+                    if not gs:
+                        raise ValueError(f"pair {i}: {which} = {name!r} is a body with no geom that can collide "
+                                         f"({int(m.body_geomnum[b])} geom(s), all with contype = conaffinity = 0): "
+                                         "name a geom instead")
+                    sides.append([m.geom(g).name or g for g in gs])
+                    continue
+            sides.append([name])
+        if sides == [[p.body1], [p.body2]]:
+            return [p]
+        return [dataclasses.replace(p, body1=g1, body2=g2) for g1 in sides[0] for g2 in sides[1]]
+
+    def _side_name(self, side) -> str:
+        """A pair side's name in warnings and records: its geom name, or for an unnamed geom (given by id
+        or through its body) "body/geom id"."""
+        if isinstance(side, (int, np.integer)) and not isinstance(side, bool):
+            g = int(side)
+            return f"{self.model.body(int(self.model.geom_bodyid[g])).name or 'body'}/geom {g}"
+        return str(side)
 
     def _resolve(self, i: int, p: PairSpec, first: int) -> list[_Pair]:
         """The managed contacts of PairSpec i (``first``: the index of the
@@ -785,7 +840,7 @@ class MujocoAdapter(EngineAdapter):
                 from engines._narrow import SphereOnBox, make_shape
 
                 self._sphere_box[first] = SphereOnBox(R1, make_shape(
-                    "box", m.geom_size[g2], edge_radius=self.edge_radii.get(m.geom(g2).name)), p.law, kernel_law)
+                    "box", m.geom_size[g2], edge_radius=_per_geom(self.edge_radii, m, g2)), p.law, kernel_law)
             return [_Pair(first, g1, g2, b1, b2, t2, R1, fixed1, fixed2)]
         if t1 == "plane":
             raise ValueError(f"pair {i}: body1 = {p.body1!r} is a plane; body1 must be the curved body "
@@ -798,10 +853,10 @@ class MujocoAdapter(EngineAdapter):
             if t == "mesh":
                 k = int(m.geom_dataid[g])
                 verts = m.mesh_vert[int(m.mesh_vertadr[k]):int(m.mesh_vertadr[k]) + int(m.mesh_vertnum[k])]
-            shapes.append(make_shape(t, m.geom_size[g], edge_radius=self.edge_radii.get(m.geom(g).name),
+            shapes.append(make_shape(t, m.geom_size[g], edge_radius=_per_geom(self.edge_radii, m, g),
                                      vertices=verts))
-        slots = [NARROW_SLOTS.get(t, 1) if t != "mesh" else int(self.mesh_slots.get(
-                     m.geom(g).name, default_mesh_slots(s.vertices)))
+        slots = [NARROW_SLOTS.get(t, 1) if t != "mesh" else int(_per_geom(
+                     self.mesh_slots, m, g, default_mesh_slots(s.vertices)))
                  for g, t, s in ((g1, t1, shapes[0]), (g2, t2, shapes[1]))]
         n_slots = max(slots[0], slots[1] if t2 != "plane" else 1)
         k = len(self._narrow_pairs)
