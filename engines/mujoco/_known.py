@@ -121,10 +121,17 @@ read).
 
 from __future__ import annotations
 
+import weakref
+
 import mujoco
 import numpy as np
 
 from engines.mujoco._stepping import RK4_B
+
+#: ids of the adapters' own scratch MjData (StepResponse's): MuJoCo's mj_fwdVelocity on them calls the
+#: process's mjcb_passive, which must neither step an adapter nor warn of an MjData without one
+#: (engines.mujoco.adapter._dispatch; an id leaves the set when its StepResponse is collected)
+SCRATCH_IDS: set[int] = set()
 
 _RK4 = int(mujoco.mjtIntegrator.mjINT_RK4)
 _EULER = int(mujoco.mjtIntegrator.mjINT_EULER)
@@ -203,6 +210,8 @@ class StepResponse:
         src = data if source is None else source
         if self._scratch is None:
             self._scratch = mujoco.MjData(m)
+            SCRATCH_IDS.add(id(self._scratch))
+            weakref.finalize(self, SCRATCH_IDS.discard, id(self._scratch))
             self._spec = mujoco.mjtState.mjSTATE_INTEGRATION
             self._state = np.empty(mujoco.mj_stateSize(m, self._spec))
         s = self._scratch

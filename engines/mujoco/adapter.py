@@ -125,7 +125,7 @@ from engines.base import (
     check_law_curvature,
 )
 from engines.mujoco import _held, _native, _resting
-from engines.mujoco._known import KnownForces, StepResponse
+from engines.mujoco._known import SCRATCH_IDS, KnownForces, StepResponse
 from engines.mujoco._stepping import StepTracker
 from msf_contact._validate import ValidityWarning
 
@@ -2442,7 +2442,7 @@ def _dispatch(model, data) -> None:
     adapter = _REGISTRY.get(id(data))
     if adapter is not None and adapter.data is data:
         adapter._passive(model, data)
-    elif id(data) not in _UNMANAGED:
+    elif id(data) not in _UNMANAGED and id(data) not in SCRATCH_IDS:  # (an adapter's own scratch: no MSF, no word)
         _unmanaged(model, data)
 
 
