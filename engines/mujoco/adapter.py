@@ -256,6 +256,21 @@ def _mujoco_contact_on(model: mujoco.MjModel, g1: int, g2: int, excluded: set | 
     return "contype/conaffinity match and no <contact><exclude> between the bodies"
 
 
+def check_passive_runs(model: mujoco.MjModel) -> None:
+    """ValueError if MuJoCo would never call mjcb_passive, where the MSF force
+    enters: with both springs and dampers disabled (``<flag spring="disable"
+    damper="disable"/>``) mj_passive returns before its callback (MuJoCo 4.0
+    src/engine/engine_passive.c, mj_passive), so the MSF pairs would have no
+    force at all (a rubber ball fell through its floor, no record, no word)."""
+    off = mujoco.mjtDisableBit
+    if (model.opt.disableflags & off.mjDSBL_SPRING) and (model.opt.disableflags & off.mjDSBL_DAMPER):
+        raise ValueError(
+            "model.opt.disableflags disables both spring and damper (<flag spring=\"disable\" damper=\"disable\"/>): "
+            "MuJoCo then skips mj_passive and its mjcb_passive, where the MSF force enters, so the MSF pairs would "
+            "have no contact at all. Enable either flag; to keep the joints' springs and dampers off, zero them "
+            "instead (model.jnt_stiffness[:] = 0, model.dof_damping[:] = 0)")
+
+
 def _simple_free_body(model: mujoco.MjModel, b: int) -> bool:
     """A body whose only joint is a free joint, with no child bodies and no
     armature: its inverse inertia at a point is the rigid body's, in closed form."""
@@ -529,6 +544,7 @@ class MujocoAdapter(EngineAdapter):
         self.model, self.data = model, data
         if not pairs:
             raise ValueError("pairs is empty: give at least one PairSpec")
+        check_passive_runs(model)
         self._excluded = set(int(s) for s in model.exclude_signature)
         self._own_on: set[tuple[int, int]] = set()  # geom pairs MuJoCo would collide (no <exclude>)
         #: edge radius [m] per box or cylinder geom name (msf_contact.shapes.DEFAULT_EDGE_RADIUS otherwise)
@@ -894,6 +910,7 @@ class MujocoAdapter(EngineAdapter):
         RuntimeError if MuJoCo reset a blown-up state."""
         if int(n) != n or n < 0:
             raise ValueError(f"n = {n!r} steps must be a whole number >= 0")
+        check_passive_runs(self.model)
         ctx = contextlib.nullcontext() if self._installed else installed(self)
         bad = int(mujoco.mjtWarning.mjWARN_BADQACC)
         counts = self.data.warning.number  # (mjNWARNING,) a view of MjData's counters (one attribute per step
@@ -2485,6 +2502,7 @@ def installed(adapter: MujocoAdapter):
     key = id(adapter.data)
     if key in _REGISTRY:
         raise ValueError("an adapter for this MjData is already installed")
+    check_passive_runs(adapter.model)  # (the flags may have changed since the adapter was made)
     if not _REGISTRY:
         prev = mujoco.get_mjcb_passive()
         if isinstance(prev, ctypes._CFuncPtr):

@@ -3,7 +3,8 @@ integrators the adapter evaluates the step's response on a scratch MjData
 (engines.mujoco._known.StepResponse: mj_fwdVelocity, which calls the process's
 mjcb_passive); that call must not warn that an MjData steps without MSF (it
 did, for any model with a hinge under implicit or implicitfast), while a
-second MjData the user steps still is warned."""
+second MjData the user steps still is warned. And a model in which MuJoCo
+never calls mjcb_passive is refused."""
 
 import warnings
 
@@ -54,3 +55,25 @@ def test_a_second_user_data_is_still_warned():
         mujoco.mj_step(model, data)
         with pytest.warns(RuntimeWarning, match=UNMANAGED):
             mujoco.mj_step(model, other)
+
+
+@pytest.mark.mujoco
+def test_springs_and_dampers_both_disabled_is_refused():
+    """MuJoCo skips mj_passive, and the mjcb_passive MSF works in, when both
+    springs and dampers are disabled: a rubber ball fell through its floor
+    with no record and no word. Refused at construction, at install and at
+    adapter.step (the flags may change in between)."""
+    model = _model("Euler")
+    data = mujoco.MjData(model)
+    off = mujoco.mjtDisableBit
+    adapter = _adapter(model, data)
+    model.opt.disableflags |= off.mjDSBL_SPRING  # one of the two: mj_passive still runs
+    adapter.step(2)
+    model.opt.disableflags |= off.mjDSBL_DAMPER
+    with pytest.raises(ValueError, match="disables both spring and damper"):
+        _adapter(model, data)
+    with pytest.raises(ValueError, match="disables both spring and damper"):
+        with installed(adapter):
+            pass
+    with pytest.raises(ValueError, match="disables both spring and damper"):
+        adapter.step(1)
