@@ -122,12 +122,104 @@ def servos(model: mujoco.MjModel, data: mujoco.MjData) -> list[Servo]:
     return out
 
 
-def stiff_pairs(servo_list: list[Servo], pair_bodies: list[tuple[int, int]], dt: float) -> dict[int, Servo]:
-    """{pair index: the stiffest servo over the bound that moves one of its
-    bodies} for pairs given as (body1, body2) ids."""
-    out: dict[int, Servo] = {}
+#: Largest equality-constraint frequency times step [-] for a held body's
+#: contact. Measured (EqualityHold's docstring): a rubber ball (R = 20 mm,
+#: 31 g) welded to a 1 kg free block, solref (2 ms, 1), dropped 50 mm on
+#: steel, first-bounce COR and the block's rebound against dt = 50 us:
+#: +0.4 % at omega dt = 0.051, +0.9 % (the block; the COR 0.0 %) at 0.077,
+#: +2.1 % at 0.103, +10 % at 0.26, +39 % at 0.51 (the most MuJoCo's
+#: refsafe allows: timeconst >= 2 dt); 0.08 keeps both within 1 %. Tighter
+#: than a servo's: a weld ties the body in all six directions.
+EQUALITY_OMEGA_DT_MAX = 0.08
+
+
+@dataclasses.dataclass(frozen=True)
+class EqualityHold:
+    """A MuJoCo equality constraint (weld, connect, joint) that ties a body
+    to another body (or the world, or a mocap body).
+
+    MSF's sub-cycle sees the body's own tree's inertia; MuJoCo's constraint
+    solver applies the equality's force in the step, held constant by the
+    sub-cycle as a_ext, so a contact on a tree the equality ties stiffly
+    comes out too bouncy (the weld's spring acts a step late). Its
+    frequency, mass-normalised as MuJoCo's soft constraints are (MuJoCo 4.0
+    engine_core_constraint.c, mj_makeImpedance: aref = -B v - K imp r with
+    K = 1 / (dmax^2 timeconst^2 dampratio^2), or -solref[0] / dmax^2 in the
+    direct format; imp <= dmax = solimp[1]; timeconst >= 2 dt unless
+    refsafe is disabled): omega = sqrt(dmax K) [rad/s]."""
+
+    name: str  # the equality's name (or "equality <id>")
+    kind: str  # weld, connect, joint
+    solref: tuple[float, float]
+    dmax: float  # solimp[1]
+    omega: float  # [rad/s]
+    bodies: frozenset  # the bodies of the trees it ties (not the world's)
+    bound: float = EQUALITY_OMEGA_DT_MAX
+
+    @property
+    def dt_max(self) -> float:
+        """The largest step [s] within the bound: its timeconst is at least 2 dt (refsafe), so a
+        timeconst-limited weld may stay over the bound at any dt: then make it one body or soften it."""
+        return self.bound / self.omega
+
+    def note(self, dt: float, pair: str) -> str:
+        return (f"stiff equality: pair {pair} moves with a body that the {self.kind} equality {self.name!r} ties "
+                f"(solref = {self.solref[0]:g} {self.solref[1]:g}, solimp dmax = {self.dmax:g}): omega = "
+                f"{self.omega:.4g} rad/s, omega dt = {self.omega * dt:.3g} > {self.bound:g} at dt = {dt:g} s; "
+                "MSF's sub-cycle sees the tree's own inertia and the equality's force a step late, so the contact "
+                "bounces too much (measured: a ball welded to a 1 kg block, COR +10 % at omega dt = 0.26, +39 % at "
+                "0.51): make the held geom part of its holder's body (a rigid hold), soften the equality's solref "
+                f"(a timeconst above {1.0 / (self.bound / dt * math.sqrt(self.dmax) * max(self.solref[1], 1e-9)):.3g}"
+                " s at this dt), or take a smaller dt")
+
+
+def equality_holds(model: mujoco.MjModel, data: mujoco.MjData) -> list[EqualityHold]:
+    """The active weld, connect and joint equalities (data.eq_active) and the
+    dynamic bodies they tie (EqualityHold; tendon and flex equalities are not
+    looked at)."""
+    E = mujoco.mjtEq
+    kinds = {int(E.mjEQ_WELD): "weld", int(E.mjEQ_CONNECT): "connect", int(E.mjEQ_JOINT): "joint"}
+    dt = float(model.opt.timestep)
+    refsafe = not (model.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_REFSAFE)
+    site = int(mujoco.mjtObj.mjOBJ_SITE)
+    out = []
+    for e in range(model.neq):
+        kind = kinds.get(int(model.eq_type[e]))
+        if kind is None or not bool(data.eq_active[e]):
+            continue
+        roots = set()
+        for obj in (int(model.eq_obj1id[e]), int(model.eq_obj2id[e])):
+            if obj < 0:
+                continue
+            if kind == "joint":
+                b = int(model.jnt_bodyid[obj])
+            elif int(model.eq_objtype[e]) == site:
+                b = int(model.site_bodyid[obj])
+            else:
+                b = obj
+            if int(model.body_weldid[b]) != 0:  # a dynamic body (not the world, nor welded to it, nor mocap)
+                roots.add(int(model.body_rootid[b]))
+        if not roots:
+            continue
+        ref = (float(model.eq_solref[e, 0]), float(model.eq_solref[e, 1]))
+        dmax = float(model.eq_solimp[e, 1])
+        if ref[0] > 0:
+            tc = max(ref[0], 2 * dt) if refsafe else ref[0]
+            K = 1.0 / max(dmax * dmax * tc * tc * ref[1] * ref[1], 1e-300)
+        else:
+            K = -ref[0] / max(dmax * dmax, 1e-300)
+        bodies = frozenset(b for b in range(1, model.nbody) if int(model.body_rootid[b]) in roots)
+        out.append(EqualityHold(_name(model, mujoco.mjtObj.mjOBJ_EQUALITY, e, "equality"), kind, ref, dmax,
+                                math.sqrt(dmax * K), bodies))
+    return out
+
+
+def stiff_pairs(servo_list: list, pair_bodies: list[tuple[int, int]], dt: float) -> dict[int, object]:
+    """{pair index: the stiffest hold (a Servo or an EqualityHold) over its
+    bound that moves one of its bodies} for pairs given as (body1, body2) ids."""
+    out: dict[int, object] = {}
     for s in servo_list:
-        if s.omega * dt <= SERVO_OMEGA_DT_MAX:
+        if s.omega * dt <= getattr(s, "bound", SERVO_OMEGA_DT_MAX):
             continue
         for i, (b1, b2) in enumerate(pair_bodies):
             if (b1 in s.bodies or b2 in s.bodies) and (i not in out or s.omega > out[i].omega):
@@ -135,4 +227,5 @@ def stiff_pairs(servo_list: list[Servo], pair_bodies: list[tuple[int, int]], dt:
     return out
 
 
-__all__ = ["SERVO_OMEGA_DT_MAX", "Servo", "servos", "stiff_pairs"]
+__all__ = ["EQUALITY_OMEGA_DT_MAX", "SERVO_OMEGA_DT_MAX", "EqualityHold", "Servo", "equality_holds", "servos",
+           "stiff_pairs"]

@@ -766,7 +766,8 @@ class MujocoAdapter(EngineAdapter):
         self.last_forces: ContactForces | None = None
         #: pairs moving with a joint held by a servo too stiff for dt (engines.mujoco._held): their
         #: records are flagged (outside_validity), one RuntimeWarning per servo here
-        self.stiff_servo_pairs = _held.stiff_pairs(_held.servos(model, data),
+        #: (and pairs on a body an equality constraint ties too stiffly for dt: _held.EqualityHold)
+        self.stiff_servo_pairs = _held.stiff_pairs(_held.servos(model, data) + _held.equality_holds(model, data),
                                                    [(p.body1, p.body2) for p in self._pairs], self.manager.dt)
         for s in {id(s): s for s in self.stiff_servo_pairs.values()}.values():
             names = [f"{i} {self.pair_names[i]}" for i, t in self.stiff_servo_pairs.items() if t is s]
