@@ -199,6 +199,29 @@ class _Bodies:
         return _Pose(self.com[j], self.rot[j], self.v[j], self.w[j], self.frame[j])
 
 
+def check_client_params(par: dict, dt: float) -> None:
+    """ValueError for client settings the adapter cannot step right
+    (``pb.getPhysicsEngineParameters``' dict ``par``; dt [s] the step the
+    adapter was made with): ``numSubSteps`` > 1 (pybullet splits each
+    ``stepSimulation`` into sub-steps that move a body by other than
+    dt v_end: every step reads as a jump, every contact is interrupted with
+    no record; measured: a rubber ball bounced on plane.urdf with
+    numSubSteps = 4 gave 0 records and 421 warnings in 3 s),
+    ``useRealTimeSimulation`` (pybullet steps by itself, between the
+    adapter's forces), and a time step changed since the adapter was made
+    (the sub-cycle would integrate the wrong dt)."""
+    if int(par["numSubSteps"]) > 1:
+        raise ValueError(f"pybullet's numSubSteps = {int(par['numSubSteps'])} (setPhysicsEngineParameter): the adapter "
+                         "needs one integration per stepSimulation (0 or 1); for a finer step call "
+                         f"setTimeStep({dt:g} / {int(par['numSubSteps'])}) and adapter.step that many times instead")
+    if int(par["useRealTimeSimulation"]):
+        raise ValueError("pybullet's useRealTimeSimulation is on (setRealTimeSimulation(1)): pybullet then steps by "
+                         "itself, between the adapter's forces; switch it off and call adapter.step()")
+    if float(par["fixedTimeStep"]) != dt:
+        raise ValueError(f"pybullet's time step changed to {float(par['fixedTimeStep']):g} s since the adapter was "
+                         f"made with {dt:g} s (setTimeStep): make a new adapter for the new step")
+
+
 class PybulletAdapter(EngineAdapter):
     """Force laws between pairs of pybullet bodies.
 
@@ -317,9 +340,11 @@ class PybulletAdapter(EngineAdapter):
             from engines.pybullet import _kernels  # numba: imported only when used
             self._k = _kernels
         self._fixed_cache: dict[int, bool] = {}  # body unique id -> base has mass 0 (read once)
-        self._dt = float(pb.getPhysicsEngineParameters(physicsClientId=client)["fixedTimeStep"])
+        par = pb.getPhysicsEngineParameters(physicsClientId=client)
+        self._dt = float(par["fixedTimeStep"])
         if not self._dt > 0:
             raise ValueError(f"the client's time step = {self._dt!r} s must be > 0 (setTimeStep)")
+        check_client_params(par, self._dt)
         pairs = list(pairs)
         self.edge_radii = {self._link_key(k, "edge_radii"): float(v) for k, v in (edge_radii or {}).items()}
         self.curvature_shapes = {self._link_key(k, "curvature"): v for k, v in (curvature or {}).items()}
@@ -1767,7 +1792,9 @@ class PybulletAdapter(EngineAdapter):
         bal = self.manager._balance
         if bal is not None:  # the last step's islands, before the anchoring moves any x
             bal.close(self.manager, self.time - dt)
-        grav = self._gravity()
+        par = pb.getPhysicsEngineParameters(physicsClientId=self.client)
+        check_client_params(par, dt)  # (the user may have changed them between steps)
+        grav = np.array([par[k] for k in ("gravityAccelerationX", "gravityAccelerationY", "gravityAccelerationZ")])
         blocks = []
         if self._fast.size:
             fast_rows = self._fast_rows_compiled if self.compiled else self._fast_rows
