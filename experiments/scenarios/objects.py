@@ -196,6 +196,7 @@ def run_mujoco(cell: dict, msf: bool) -> dict:
     steps = int(round(d["duration"] / d["dt"]))
     every = max(1, int(round(d["sample"] / d["dt"])))
     t, z, E = [0.0], [com_height(model, data)], [mechanical_energy(model, data)]
+    W_fin = [0.0]  # MSF: the finished contacts' W_t - Q_t in E (msf_energy), to take out for the display
     wall = time.perf_counter()
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -212,9 +213,11 @@ def run_mujoco(cell: dict, msf: bool) -> dict:
                     if k % every == 0 and not np.any(adapter.manager.J != 0.0):
                         t.append(float(data.time)), z.append(com_height(model, data))
                         E.append(msf_energy(model, data, adapter))
+                        W_fin.append(float(np.sum(adapter.manager.W_tq_finished)))
     wall = (time.perf_counter() - wall) / steps
     out = {"t": t, "z": z, "E": E, "step_s": wall, "warnings": sorted({str(w.message)[:200] for w in caught})[:5]}
     if adapter is not None:
+        out["W_fin"] = W_fin
         recs = adapter.records
         out.update(impacts=len(recs), outside=sum(bool(r.outside_validity) for r in recs),
                    outside_examples=sorted({r.outside_validity[0][:160] for r in recs if r.outside_validity})[:3],
@@ -302,6 +305,7 @@ def run_pybullet(cell: dict, msf: bool) -> dict:
         steps = int(round(d["duration"] / d["dt"]))
         every = max(1, int(round(d["sample"] / d["dt"])))
         t, zs, E = [0.0], [height()], [_pybullet_energy(c, uid)]
+        W_fin = [0.0]  # as run_mujoco's
         wall = time.perf_counter()
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -313,10 +317,12 @@ def run_pybullet(cell: dict, msf: bool) -> dict:
                 if k % every == 0 and (adapter is None or not np.any(adapter.manager.J != 0.0)):
                     t.append(k * d["dt"]), zs.append(height())
                     E.append(_pybullet_energy(c, uid) + (0.0 if adapter is None else adapter.manager.stored_energy()))
+                    W_fin.append(0.0 if adapter is None else float(np.sum(adapter.manager.W_tq_finished)))
         wall = (time.perf_counter() - wall) / steps
         out = {"t": t, "z": zs, "E": E, "step_s": wall,
                "warnings": sorted({str(w_.message)[:200] for w_ in caught})[:5]}
         if adapter is not None:
+            out["W_fin"] = W_fin
             recs = adapter.records
             out.update(impacts=len(recs), outside=sum(bool(r.outside_validity) for r in recs),
                        outside_examples=sorted({r.outside_validity[0][:160] for r in recs if r.outside_validity})[:3],
@@ -349,7 +355,13 @@ def run_cell(cell: dict) -> list[dict]:
     if above:
         warnings.warn(f"objects: {cell['object']} with MSF in {base} gained {gain:.3g} J, above the bound "
                       f"ENERGY_GAIN_RTOL E0 = {ENERGY_GAIN_RTOL * float(E[0]):.3g} J", RuntimeWarning, stacklevel=2)
-    return [{**rec, **out, "failed": False, "E0": float(E[0]), "E_end": float(E[-1]), "z_end": float(out["z"][-1]),
+    # shown: what the object and its contacts in progress hold, E less the finished contacts' W_t - Q_t, which
+    # the gain check needs (a finished contact can end with tangential energy of either sign) but which also
+    # books every joule Coulomb slip dissipated (ContactManager.stored_energy): a PTFE cube at rest in MuJoCo
+    # read 0.0627 J against its 0.0245 J of potential energy, 38 mJ of it slip
+    W_fin = np.asarray(out.get("W_fin", np.zeros(E.size)))
+    return [{**rec, **out, "failed": False, "E0": float(E[0]), "E_end": float(E[-1] - W_fin[-1]),
+             "W_fin_end": float(W_fin[-1]), "z_end": float(out["z"][-1]),
              "energy_gain": gain, "energy_gain_rel": gain / float(E[0]), "energy_gain_above_bound": above}]
 
 
@@ -367,6 +379,7 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    import numpy as np
 
     from engines._contacts.state import ENERGY_GAIN_RTOL
 
@@ -378,22 +391,27 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
              f"{m['object']} objects on a {m['floor']} plane, law {m['law']}, edge radius {1e3 * m['edge_radius']:g} "
              f"mm, friction {m['friction']:g}; dropped with the lowest point {d['height']:g} m above the plane, "
              f"turned {d['tilt_deg'][0]:g} deg about x then {d['tilt_deg'][1]:g} deg about y, spinning at "
-             f"{d['omega']} rad/s; dt = {d['dt']:g} s ({d['integrator']}), {d['duration']:g} s. Energy: kinetic + "
-             "gravitational of the physical velocities (MSF's one-step timing offset taken out), plus with MSF the "
-             "elastic energy held in the contacts and the finished contacts' W_t - Q_t (read at steps without a "
-             "pending timing correction); gain: the largest "
-             "rise of it over any interval (the built-in contact's penetration stores energy that this sum leaves "
-             f"out); MSF's bound: ENERGY_GAIN_RTOL E0 = {ENERGY_GAIN_RTOL:g} E0 (the contacts' own energy check), "
-             "above it marked and warned. Outside: MSF records flagged outside the model's validity.\n\n",
-             "| object | contact | failed | E0 [J] | E end [J] | energy gain [J] (of E0) | z end [m] | impacts | "
-             "outside | laws | step [ms] |\n|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n"]
+             f"{d['omega']} rad/s; dt = {d['dt']:g} s ({d['integrator']}), {d['duration']:g} s. Energy (E end, "
+             "the figures): kinetic + gravitational of the physical velocities (MSF's one-step timing offset taken "
+             "out), plus with MSF what its contacts in progress hold (elastic, W_t - Q_t), read at steps without "
+             "a pending timing correction. Gain: the largest rise over any interval of that sum plus the finished "
+             "contacts' W_t - Q_t (the contacts' own check's measure: a finished contact may end with tangential "
+             "energy of either sign), which also books what Coulomb slip dissipated, shown apart as 'finished "
+             "W_t - Q_t' (the built-in contact's penetration stores energy that these sums leave out); MSF's "
+             f"bound: ENERGY_GAIN_RTOL E0 = {ENERGY_GAIN_RTOL:g} E0 (the contacts' own energy check), above it "
+             "marked and warned. Outside: MSF records flagged outside the model's validity.\n\n",
+             "| object | contact | failed | E0 [J] | E end [J] | finished W_t - Q_t [J] | energy gain [J] (of E0) | "
+             "z end [m] | impacts | outside | laws | step [ms] |\n"
+             "|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n"]
     for r in sorted(rows, key=lambda r: (OBJECTS.index(r["object"]), ENGINES.index(
             r["engine"] + ("-builtin" if r["contact"] == "builtin" else "")))):
         if r["failed"]:
-            lines.append(f"| {r['object']} | {_label(r)} | {r['reason']} | | | | | | | | |\n")
+            lines.append(f"| {r['object']} | {_label(r)} | {r['reason']} | | | | | | | | | |\n")
             continue
         mark = " **above the bound**" if r.get("energy_gain_above_bound") else ""
-        lines.append(f"| {r['object']} | {_label(r)} | no | {r['E0']:.4f} | {r['E_end']:.4f} | {r['energy_gain']:.3g} "
+        w_fin = f"{r['W_fin_end']:.4f}" if r["contact"] == "msf" and "W_fin_end" in r else ""
+        lines.append(f"| {r['object']} | {_label(r)} | no | {r['E0']:.4f} | {r['E_end']:.4f} | {w_fin} | "
+                     f"{r['energy_gain']:.3g} "
                      f"({100 * r['energy_gain_rel']:.4f} %){mark} | {r['z_end']:.4f} | {r.get('impacts', '')} | "
                      f"{r.get('outside', '')} | {r.get('laws', '')} | {1e3 * r['step_s']:.3f} |\n")
     lines.append("\n")
@@ -408,7 +426,8 @@ def report(out: Path, rows: list[dict], cfg: dict) -> tuple[str, list[str]]:
         for r in sel:
             style = STYLE[(r["engine"], r["contact"])]
             axes[0].plot(r["t"], r["z"], style, label=_label(r))
-            axes[1].plot(r["t"], r["E"], style, label=_label(r))
+            E = np.asarray(r["E"]) - np.asarray(r.get("W_fin", np.zeros(len(r["E"]))))
+            axes[1].plot(r["t"], E, style, label=_label(r))
         axes[0].set_ylabel("centre of mass height [m]")
         axes[1].set_ylabel("energy [J] (kinetic, gravity, MSF elastic)")
         for ax in axes:
