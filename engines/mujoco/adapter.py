@@ -662,6 +662,10 @@ class MujocoAdapter(EngineAdapter):
         self.pair_names = [(self._side_name(p.body1), self._side_name(p.body2)) for p in self.pairs]  # per slot
         self.manager.pair_names = self.pair_names
         self._sensors = self._msf_sensors()
+        #: the MSF geoms' shape as the adapter was made (_check_geoms): their size, their pose in their body
+        g = sorted({int(x) for q in self._pairs for x in (q.geom1, q.geom2) if geom_type_name(model, x) != "plane"})
+        self._geom_ids = np.array(g, dtype=np.int64)
+        self._geom_shape0 = self._geom_shape()
         # run-time switch per pair (set_mode): 0 MSF, 1 the engine's own contact, 2 both off;
         # _handoff: a sphere through a box handed to MuJoCo's contact while it lasts (EngineAdapter._through)
         self._mode = np.zeros(P, np.int8)
@@ -821,7 +825,7 @@ class MujocoAdapter(EngineAdapter):
         or through its body) "body/geom id"."""
         if isinstance(side, (int, np.integer)) and not isinstance(side, bool):
             g = int(side)
-            return f"{self.model.body(int(self.model.geom_bodyid[g])).name or 'body'}/geom {g}"
+            return self.model.geom(g).name or f"{self.model.body(int(self.model.geom_bodyid[g])).name or 'body'}/geom {g}"
         return str(side)
 
     def _resolve(self, i: int, p: PairSpec, first: int) -> list[_Pair]:
@@ -912,6 +916,7 @@ class MujocoAdapter(EngineAdapter):
         if int(n) != n or n < 0:
             raise ValueError(f"n = {n!r} steps must be a whole number >= 0")
         check_passive_runs(self.model)
+        self._check_geoms()
         ctx = contextlib.nullcontext() if self._installed else installed(self)
         bad = int(mujoco.mjtWarning.mjWARN_BADQACC)
         counts = self.data.warning.number  # (mjNWARNING,) a view of MjData's counters (one attribute per step
@@ -1016,6 +1021,28 @@ class MujocoAdapter(EngineAdapter):
                         r.outside_validity.append(note)
         return records
 
+    def _geom_shape(self) -> np.ndarray:
+        """(k, 10): size (3), pos (3) and quat (4) in their body of the MSF geoms that are not planes."""
+        m, g = self.model, self._geom_ids
+        return np.hstack([m.geom_size[g], m.geom_pos[g], m.geom_quat[g]])
+
+    def _check_geoms(self) -> None:
+        """RuntimeError if an MSF geom's size or its pose in its body changed since the adapter was made
+        (domain randomisation between episodes: a ball's radius set from 0.02 to 0.03 m kept the contact at
+        0.02 m, the ball resting 10 mm inside the floor, with no word): its law's curvature, the analytic
+        paths' radius and the narrow phase's shapes were taken from the geom then."""
+        now = self._geom_shape()
+        if np.array_equal(now, self._geom_shape0):
+            return
+        k = int(np.flatnonzero(np.any(now != self._geom_shape0, axis=1))[0])
+        g = int(self._geom_ids[k])
+        j = int(np.flatnonzero(now[k] != self._geom_shape0[k])[0])
+        what, cols = ("size", slice(0, 3)) if j < 3 else ("pos", slice(3, 6)) if j < 6 else ("quat", slice(6, 10))
+        raise RuntimeError(f"model.geom_{what} of the MSF geom {self._side_name(g)!r} changed from "
+                           f"{self._geom_shape0[k, cols].tolist()} to {now[k, cols].tolist()} after the adapter was "
+                           "made: its contact geometry and its law's curvature were taken then; make a new adapter "
+                           "(with a law for the new shape) after changing a geom")
+
     # -- the hook ----------------------------------------------------------------
     def _passive(self, model, data, kind: str | None = None) -> None:
         """The hook: classify the call (engines.mujoco._stepping), compute the
@@ -1035,6 +1062,7 @@ class MujocoAdapter(EngineAdapter):
                 raise RuntimeError(f"model.opt.timestep = {float(model.opt.timestep)!r} s changed after the adapter "
                                    f"was made for dt = {self.manager.dt!r} s: make a new adapter")
             if kind == "jump":
+                self._check_geoms()  # (a reset is where a model is randomised)
                 self._jump()
             self._in_hook = True
             self._unheld = None  # the generalised force of the step's forces not held (set by _compute)
@@ -2504,6 +2532,7 @@ def installed(adapter: MujocoAdapter):
     if key in _REGISTRY:
         raise ValueError("an adapter for this MjData is already installed")
     check_passive_runs(adapter.model)  # (the flags may have changed since the adapter was made)
+    adapter._check_geoms()
     if not _REGISTRY:
         prev = mujoco.get_mjcb_passive()
         if isinstance(prev, ctypes._CFuncPtr):
