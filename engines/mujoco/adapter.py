@@ -271,6 +271,13 @@ def check_passive_runs(model: mujoco.MjModel) -> None:
             "instead (model.jnt_stiffness[:] = 0, model.dof_damping[:] = 0)")
 
 
+def _driven(model: mujoco.MjModel, b: int) -> bool:
+    """Body b is driven by the user: a mocap body or a body welded to one (no joint between;
+    MuJoCo's body_weldid of a mocap body is the body itself)."""
+    w = int(model.body_weldid[b])
+    return w > 0 and int(model.body_mocapid[w]) >= 0
+
+
 def _simple_free_body(model: mujoco.MjModel, b: int) -> bool:
     """A body whose only joint is a free joint, with no child bodies and no
     armature: its inverse inertia at a point is the rigid body's, in closed form."""
@@ -745,6 +752,13 @@ class MujocoAdapter(EngineAdapter):
         # the adapter's own conditions for the resting step in one call (engines.mujoco._resting.eligible)
         self._fused_static = bool(self.compiled and not self._slow and self._fast.index.size and not self._shared
                                   and not self._any_link)
+        #: the bodies the user drives kinematically (mocap bodies and bodies welded to one) in the pairs,
+        #: moving at the twist of their last pose change (engines._kinematic); None: none
+        self._kin = self._driven_bodies()
+        if self._kin is not None:
+            self._fused_static = False  # the resting step in one call reads no driven body's motion
+        self._kin_declared: set[int] = set()  # driven bodies placed by the user since the last step (placed)
+        self._kin_push = None  # the candidate reach with the driven bodies' motion, this step's (_drive)
         #: contacts found deep at their onset on a link (flagged; _check_deep_onsets, engines._contacts.balance)
         self._deep = DeepOnsets()
         #: box corner contacts on a free body turning more than BOX_TURN_PER_STEP_MAX a step (_check_fast_turns)
@@ -849,9 +863,13 @@ class MujocoAdapter(EngineAdapter):
         if why is not None:  # switched off by the adapter's mjcb_contactfilter while installed (set_mode)
             self._own_on.add((min(g1, g2), max(g1, g2)))
         b1, b2 = int(m.geom_bodyid[g1]), int(m.geom_bodyid[g2])
-        fixed1, fixed2 = int(m.body_weldid[b1]) == 0, int(m.body_weldid[b2]) == 0
+        # a body driven by the user (a mocap body, or welded to one: engines._kinematic) is taken as fixed,
+        # an infinite mass, moving at the twist of its last pose change (MujocoAdapter._drive)
+        fixed1, fixed2 = int(m.body_weldid[b1]) == 0 or _driven(m, b1), int(m.body_weldid[b2]) == 0 or _driven(m, b2)
         if fixed1 and fixed2:
-            raise ValueError(f"pair {i}: both {p.body1!r} and {p.body2!r} are welded to the world")
+            raise ValueError(f"pair {i}: both {p.body1!r} and {p.body2!r} are welded to the world or driven "
+                             "by the user (mocap bodies): neither can move under the contact force; give one "
+                             "of them a joint")
         if t1 == "sphere" and t2 in _SECOND:  # the analytic paths (engines._geometry), kept as they are
             R1 = float(m.geom_size[g1, 0])
             R2 = float(m.geom_size[g2, 0]) if t2 == "sphere" else math.inf
@@ -902,6 +920,116 @@ class MujocoAdapter(EngineAdapter):
             self._box[k].check(p.law)
         return [_Pair(first + s, g1, g2, b1, b2, "narrow", float(m.geom_rbound[g1]), fixed1, fixed2, k, s)
                 for s in range(n_slots)]
+
+    def _driven_bodies(self):
+        """The pairs' bodies the user drives kinematically (engines._kinematic): welded to the
+        world (no joint between them and it) and moved by a mocap body, themselves or an ancestor;
+        None when no pair has one."""
+        m = self.model
+        driven = {}
+        sides = np.full((len(self._pairs), 2), -1, np.int64)
+        for p in self._pairs:
+            for s, b in enumerate((p.body1, p.body2)):
+                if _driven(m, b):
+                    sides[p.index, s] = driven.setdefault(b, len(driven))
+        if not driven:
+            return None
+        from engines._kinematic import KinematicBodies
+
+        bodies = list(driven)
+        reach = []
+        for b in bodies:  # the farthest geom point of the body from its frame's origin
+            g = np.flatnonzero(m.geom_bodyid == b)
+            reach.append(float(np.max(np.linalg.norm(m.geom_pos[g], axis=1) + m.geom_rbound[g])) if g.size else 0.0)
+        return KinematicBodies(bodies, sides, reach, [m.body(b).name or f"body {b}" for b in bodies])
+
+    def placed(self, bodies) -> None:
+        """Say that the driven (mocap) bodies ``bodies`` (body names or ids) were
+        placed since the last step, not driven there: their pose change is
+        taken as a placement (no velocity in the next step; their contacts in
+        progress end without a record, quietly) instead of the velocity it
+        implies (engines._kinematic)."""
+        kin = self._kin
+        for b in bodies:
+            bid = mujoco.mj_name2id(self.model, mujoco.mjtObj.mjOBJ_BODY, b) if isinstance(b, str) else int(b)
+            if kin is None or bid not in kin.bodies:
+                raise ValueError(f"placed: body {b!r} is not a driven (mocap) body of an MSF pair "
+                                 f"({', '.join(kin.names) if kin is not None else 'there is none'})")
+            self._kin_declared.add(kin.bodies.index(bid))
+
+    def _drive(self, kind: str) -> None:
+        """At a step's first hook call: the driven bodies' twist for the step
+        (engines._kinematic), their contacts interrupted at an undeclared
+        placement, and their pairs' candidate reach for the step."""
+        kin, d = self._kin, self.data
+        b = kin.bodies
+        declared, self._kin_declared = self._kin_declared, set()
+        jumped = kin.update(d.xpos[b], d.xquat[b], self.timestep, reset=kind in ("jump", "first"),
+                            declared=sorted(declared))
+        for j in sorted(set(jumped) | declared):
+            rows = kin.rows[np.any(kin.sides[kin.rows] == j, axis=1)]
+            if j in declared:
+                self.manager.interrupt(rows, f"driven body {kin.names[j]!r} placed (adapter.placed)")
+                continue
+            why = (f"the driven (mocap) body {kin.names[j]!r} jumped at t = {float(d.time):.6g} s: its pose "
+                   f"change implies a velocity change above KINEMATIC_ACCEL_MAX dt (engines._kinematic), so it "
+                   "is taken as a placement (no velocity this step), not as motion")
+            n = self.manager.interrupt(rows, why)
+            self.jumps += 1
+            self.interrupted += n
+            if n:
+                warnings.warn(f"{why}; {n} MSF contact(s) in progress were interrupted without a record "
+                              f"(adapter.interrupted = {self.interrupted}; drive the body smoothly, setting its "
+                              "pose every step, or declare a placement with adapter.placed([...]))",
+                              RuntimeWarning, stacklevel=4)
+        if kin.moving:
+            self._kin_push = self._push.copy()
+            self._kin_push[kin.rows] += kin.push(self.timestep, CANDIDATE_FACTOR)
+            self._push = self._kin_push
+
+    def _drive_work(self) -> None:
+        """The work the driven bodies did on their partners in the step (the islands' energy probe)."""
+        out, kin = self.last_forces, self._kin
+        if out is None or not kin.moving:
+            return
+        pair = np.asarray(out.pair, dtype=np.int64)
+        sel = np.flatnonzero(np.any(kin.sides[pair] >= 0, axis=1))
+        if sel.size:
+            q = pair[sel]
+            kin.credit(q, np.asarray(out.force, dtype=float)[sel], self._p1[q], self._p2[q], self.timestep)
+
+    def _mask(self, kin: ContactKinematics) -> ContactKinematics:
+        """The driven bodies' velocities added to the rows (engines._kinematic), then
+        EngineAdapter._mask."""
+        drv = self._kin
+        if drv is not None and drv.moving and kin.pair.size:
+            pair = np.asarray(kin.pair, dtype=np.int64)
+            sel = np.flatnonzero(np.any(drv.sides[pair] >= 0, axis=1))
+            if sel.size:
+                q = pair[sel]
+                d = self.data
+                b1 = np.array([self._pairs[i].body1 for i in q], dtype=np.int64)
+                b2 = np.array([self._pairs[i].body2 for i in q], dtype=np.int64)
+                v, vc = drv.adjust(q, kin.v_rel[sel], kin.v_com_rel[sel], self._p1[q], self._p2[q], d.xipos[b1],
+                                   d.xipos[b2])
+                kin.v_rel = np.array(kin.v_rel, dtype=float)
+                kin.v_com_rel = np.array(kin.v_com_rel, dtype=float)
+                kin.v_rel[sel], kin.v_com_rel[sel] = v, vc
+        return super()._mask(kin)
+
+    def _drive_energy(self, b: np.ndarray) -> np.ndarray:
+        """The work (b,) [J] the driven bodies did on the bodies of keys b (root ids), their
+        outstanding timing corrections' share taken out (the energy probe takes J out)."""
+        kin, mgr = self._kin, self.manager
+        out = np.zeros(b.size)
+        rows = kin.rows
+        A = kin.work[rows] - kin.correction_work(rows, mgr.J[rows], self._p1[rows], self._p2[rows])
+        for side in (0, 1):  # credited to the pair's other (moving) side
+            other = self._keys[rows, 1 - side]
+            on = (kin.sides[rows, side] >= 0) & (other >= 0)
+            for k, key in zip(np.flatnonzero(on), other[on]):
+                out[b == key] += A[k]
+        return out
 
     # -- contract --------------------------------------------------------------
     @property
@@ -1064,6 +1192,9 @@ class MujocoAdapter(EngineAdapter):
             if kind == "jump":
                 self._check_geoms()  # (a reset is where a model is randomised)
                 self._jump()
+            push = self._push
+            if self._kin is not None:
+                self._drive(kind)
             self._in_hook = True
             self._unheld = None  # the generalised force of the step's forces not held (set by _compute)
             self._step_start = self._start_state(data) if self.exact_offset else None
@@ -1072,8 +1203,12 @@ class MujocoAdapter(EngineAdapter):
                     self._step_start = None  # applied by the resting step itself: not replayable
                     return  # the resting step applied its forces itself (engines.mujoco._resting: no pair
                     # read through Jacobians, so no known forces to tell)
+                if self._kin is not None:
+                    self._drive_work()
             finally:
                 self._in_hook = False
+                if self._kin is not None and self._push is not push and self._push is self._kin_push:
+                    self._push = push  # the driven bodies' reach was for this step's candidates only
         before = data.qfrc_passive.copy() if computed and known is not None else None
         self._apply_forces(model, data)
         if before is not None:
@@ -2125,6 +2260,8 @@ class MujocoAdapter(EngineAdapter):
             np.subtract.at(w, i, np.einsum("kij,kj->ki", R[i], np.einsum("kji,kj->ki", R[i], L) / I[i]))
         wl = np.einsum("kji,kj->ki", R, w)  # body axes
         T = 0.5 * mass * np.einsum("ki,ki->k", v, v) + 0.5 * np.einsum("ki,ki->k", wl * I, wl)
+        if self._kin is not None:  # the driven bodies' work on them (engines._kinematic)
+            T = T - self._drive_energy(b)
         U = -mass * (d.xipos[b] @ g)
         q = mass * (v @ g)
         bad = ~self._free_body[b]
@@ -2402,8 +2539,16 @@ class MujocoAdapter(EngineAdapter):
         # _angular_velocity and _com_velocity of both bodies, inlined (twice per impact in a jet);
         # the difference on Python floats is numpy's elementwise one
         c1, c2 = _com_velocity_floats(m, d, b1), _com_velocity_floats(m, d, b2)
-        return {"omega1": d.cvel[b1, :3].copy(), "omega2": d.cvel[b2, :3].copy(),
-                "v_com_rel": np.array([c1[0] - c2[0], c1[1] - c2[1], c1[2] - c2[2]])}
+        out = {"omega1": d.cvel[b1, :3].copy(), "omega2": d.cvel[b2, :3].copy(),
+               "v_com_rel": np.array([c1[0] - c2[0], c1[1] - c2[1], c1[2] - c2[2]])}
+        kin = self._kin
+        if kin is not None and (kin.sides[i] >= 0).any():  # a driven body's twist (engines._kinematic)
+            for s, b, sign in ((0, b1, 1.0), (1, b2, -1.0)):
+                j = int(kin.sides[i, s])
+                if j >= 0:
+                    out[f"omega{s + 1}"] = kin.w[j].copy()
+                    out["v_com_rel"] += sign * kin.velocity_at(np.array([j]), d.xipos[b][None])[0]
+        return out
 
     def _probe_batch(self):
         """The manager's batch probe: one refresh for all the records it

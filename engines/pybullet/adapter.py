@@ -442,6 +442,10 @@ class PybulletAdapter(EngineAdapter):
         self._last_com = np.zeros((len(self._body_list), 3))
         self._have_com = False
         self._declared: set[int] = set()  # body slots placed by the caller (placed())
+        #: the pairs' mass-0 bases, which only the user moves (resetBasePositionAndOrientation): each
+        #: moves at the twist of its last pose change (engines._kinematic); None: no such body
+        self._kin = self._driven_bodies()
+        self._kin_R = None  # their rotations at the last step start (B_d, 3, 3)
         #: jumps seen (bodies that moved other than by one adapter step), contacts they interrupted
         self.jumps = 0
         self.interrupted = 0
@@ -949,6 +953,105 @@ class PybulletAdapter(EngineAdapter):
     @property
     def now(self) -> float:
         return self.time
+
+    def _driven_bodies(self):
+        """The pairs' mass-0 bases (fixed in pybullet, moved only by the user) as
+        engines._kinematic.KinematicBodies over their slots, or None."""
+        from engines._kinematic import KinematicBodies
+
+        slots = [j for j, b in enumerate(self._body_list) if self._b_fixed[j]]
+        if not slots:
+            return None
+        at = {j: k for k, j in enumerate(slots)}
+        sides = np.array([[at.get(int(j1), -1), at.get(int(j2), -1)] for j1, j2 in self._slot],
+                         np.int64).reshape(-1, 2)
+        reach = np.zeros(len(slots))
+        for i, (s1, s2) in enumerate(self._shapes):  # each shape's farthest point from the body's frame
+            for side, s in ((0, s1), (1, s2)):
+                k = sides[i, side]
+                if k >= 0:
+                    reach[k] = max(reach[k], float(np.linalg.norm(s.pos)) + _shape_reach(s))
+        kin = KinematicBodies(slots, sides, reach, [self._body_name(self._body_list[j]) for j in slots])
+        kin.slots = np.array(slots, np.int64)
+        return kin
+
+    def _drive(self, bodies: _Bodies) -> None:
+        """At a step's start: the driven (mass-0) bodies' twist for the step from their
+        pose change (engines._kinematic), their contacts interrupted at an undeclared
+        placement, and their pairs' candidate reach for the step."""
+        kin = self._kin
+        j = kin.slots
+        pos, R = bodies.com[j], bodies.rot[j]
+        declared = [k for k, jj in enumerate(j.tolist()) if jj in self._declared]
+        if (not declared and not kin.moving and kin.have.all() and np.array_equal(pos, kin.pos)
+                and np.array_equal(R, self._kin_R)):
+            return  # nothing moved (the usual case: a floor)
+        from engines._kinematic import rot_to_quat
+
+        jumped = kin.update(pos, rot_to_quat(R), self._dt, declared=declared)
+        self._kin_R = R.copy()
+        for k in sorted(set(jumped) | set(declared)):
+            rows = kin.rows[np.any(kin.sides[kin.rows] == k, axis=1)]
+            if k in declared:
+                self.manager.interrupt(rows, f"driven body {kin.names[k]!r} placed (adapter.placed)")
+                continue
+            why = (f"the mass-0 body {kin.names[k]!r} jumped at t = {self.time:.6g} s: its pose change implies a "
+                   "velocity change above KINEMATIC_ACCEL_MAX dt (engines._kinematic), so it is taken as a "
+                   "placement (no velocity this step), not as motion")
+            n = self.manager.interrupt(rows, why)
+            self.jumps += 1
+            self.interrupted += n
+            if n:
+                warnings.warn(f"{why}; {n} MSF contact(s) in progress were interrupted without a record "
+                              f"(adapter.interrupted = {self.interrupted}; drive the body smoothly, resetting its "
+                              "pose every step, or declare a placement with adapter.placed([...]))",
+                              RuntimeWarning, stacklevel=4)
+        if kin.moving:
+            self._push = self._push.copy()
+            self._push[kin.rows] += kin.push(self._dt, CANDIDATE_FACTOR)
+
+    def _mask(self, kin: ContactKinematics) -> ContactKinematics:
+        """The driven bodies' velocities added to the rows (engines._kinematic), then
+        EngineAdapter._mask."""
+        drv = self._kin
+        if drv is not None and drv.moving and kin.pair.size:
+            pair = np.asarray(kin.pair, dtype=np.int64)
+            sel = np.flatnonzero(np.any(drv.sides[pair] >= 0, axis=1))
+            if sel.size:
+                q = pair[sel]
+                com = self._cur_bodies.com
+                pt = np.asarray(kin.point, dtype=float)[sel]
+                v, vc = drv.adjust(q, kin.v_rel[sel], kin.v_com_rel[sel], pt, pt, com[self._slot[q, 0]],
+                                   com[self._slot[q, 1]])
+                kin.v_rel = np.array(kin.v_rel, dtype=float)
+                kin.v_com_rel = np.array(kin.v_com_rel, dtype=float)
+                kin.v_rel[sel], kin.v_com_rel[sel] = v, vc
+        return super()._mask(kin)
+
+    def _drive_work(self, out) -> None:
+        """The work the driven bodies did on their partners in the step (the islands' energy probe)."""
+        kin = self._kin
+        if kin is None or not kin.moving:
+            return
+        pair = np.asarray(out.pair, dtype=np.int64)
+        sel = np.flatnonzero(np.any(kin.sides[pair] >= 0, axis=1))
+        if sel.size:
+            pt = np.asarray(out.point, dtype=float)[sel]
+            kin.credit(pair[sel], np.asarray(out.force, dtype=float)[sel], pt, pt, self._dt)
+
+    def _drive_energy(self, k: np.ndarray) -> np.ndarray:
+        """The work (b,) [J] the driven bodies did on the bodies of keys k, their outstanding
+        timing corrections' share taken out (the energy probe takes J out)."""
+        kin, mgr = self._kin, self.manager
+        out = np.zeros(k.size)
+        rows = kin.rows
+        A = kin.work[rows] - kin.correction_work(rows, mgr.J[rows], self._pt[rows], self._pt[rows])
+        for side in (0, 1):  # credited to the pair's other (moving) side
+            other = self._keys[rows, 1 - side]
+            on = (kin.sides[rows, side] >= 0) & (other >= 0)
+            for r, key in zip(np.flatnonzero(on), other[on]):
+                out[k == key] += A[r]
+        return out
 
     def placed(self, bodies) -> None:
         """Say that ``bodies`` ((body unique id, link index) or body unique ids)
@@ -1785,6 +1888,8 @@ class PybulletAdapter(EngineAdapter):
         required = np.zeros(len(self.pairs), bool)
         required[self.manager.required_pairs] = True  # in contact, or a timing correction to remove
         bodies = self._read_bodies()
+        if self._kin is not None:
+            self._drive(bodies)
         self._check_advance(bodies)
         self._cur_bodies = bodies
         if self._art_slots:
@@ -1841,6 +1946,8 @@ class PybulletAdapter(EngineAdapter):
         self._check_deep_onsets(float(kin.t))
         self._say_unchecked()
         self._last_kin, self._last_out = kin, out
+        if self._kin is not None:
+            self._drive_work(out)
         self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
         pair = np.asarray(out.pair, int)
         force = np.asarray(out.force, float)
@@ -2201,6 +2308,8 @@ class PybulletAdapter(EngineAdapter):
                 T[r], mass[r] = self._multibody_kinetic(uid)
                 O, q[r] = self._correction_energy(uid, bodies)
                 U[r] = self.multibody_work.get(uid, 0.0) - O - T[r]
+        if self._kin is not None:  # the driven bodies' work on them (engines._kinematic)
+            U = U - self._drive_energy(k)
         return T, U, q, mass
 
     def _coupling_blocks(self, pp, pq):
@@ -2410,7 +2519,14 @@ class PybulletAdapter(EngineAdapter):
         body 1's angular velocity gives spin_in/spin_out about n x t; both
         bodies' give their rotation per step [rad/s] (3,)."""
         b1, b2 = self._bodies[i]
-        return {"omega1": self._pose(b1).w, "omega2": np.zeros(3) if self._fixed(b2) else self._pose(b2).w}
+        out = {"omega1": self._pose(b1).w, "omega2": np.zeros(3) if self._fixed(b2) else self._pose(b2).w}
+        kin = self._kin
+        if kin is not None:  # a driven body's twist (engines._kinematic)
+            for s in (0, 1):
+                j = int(kin.sides[i, s])
+                if j >= 0:
+                    out[f"omega{s + 1}"] = kin.w[j].copy()
+        return out
 
     def _orientation_free(self, b, s: _Shape) -> bool:
         """The contact of shape s does not depend on its body b's orientation:
@@ -2429,6 +2545,20 @@ class PybulletAdapter(EngineAdapter):
     def body_state(self, b) -> _Pose:
         """World pose and velocities of a (body, link) [SI]."""
         return self._pose(b)
+
+
+def _shape_reach(s: _Shape) -> float:
+    """The farthest point of shape s from its own frame's origin [m] (a plane: 0, unbounded)."""
+    if s.kind == "sphere":
+        return float(s.size[0])
+    if s.kind == "box":
+        return float(np.linalg.norm(s.size[:3]))
+    if s.kind in ("capsule", "cylinder"):
+        r, h = float(s.size[0]), float(s.size[1])
+        return r + h if s.kind == "capsule" else math.hypot(r, h)
+    if s.kind == "mesh" and s.vertices is not None and len(s.vertices):
+        return float(np.max(np.linalg.norm(s.vertices, axis=1)))
+    return 0.0
 
 
 def _check_curvature(i, p: PairSpec, s1: _Shape, s2: _Shape) -> None:

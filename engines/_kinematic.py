@@ -1,0 +1,212 @@
+"""Bodies the user drives kinematically in MSF pairs (both adapters): MuJoCo's
+mocap bodies (and bodies welded to one), pybullet's mass-0 bases moved with
+``resetBasePositionAndOrientation`` (every mass-0 base of a pair is watched:
+pybullet moves none itself); the standard way to drive a gripper, a racket or
+a paddle.
+
+Such a body has no velocity in the engine (MuJoCo's ``cvel`` of a mocap body
+is zero; a mass-0 pybullet body moved with ``resetBasePositionAndOrientation``
+has none): its motion is a jump of its pose between two steps. Read as a
+static body, it passes straight through an MSF partner (a mocap paddle at
+1 m/s through a resting rubber ball at 1 ms: no contact, the ball left at
+-0.317 m/s, /work/usercheck/mj_mocap.py on e6aa1f1).
+
+The convention (docs/engines.md, "Your own loop"): at each engine step the
+body moves at the velocity its last pose change implies, the twist
+
+    v = (p_k - p_{k-1}) / dt,   omega = axis-angle(q_k q_{k-1}^-1) / dt
+
+(p the body frame's origin, q its orientation, world axes, between the
+starts of the last two steps), held over the step: it is an infinite-mass
+body (W takes nothing from it) moving at that twist inside the contact's
+sub-cycle, so the contact's approach rate and slip include it (v_rel, the
+relative centre-of-mass velocity, the records' probe). Its acceleration is
+not predicted: a change of its velocity enters the contact one step late
+(the overlap is off by dt |dv_n| for as long as the contact lasts; a
+steady drive has none). The work it does on its partners (F . v at the
+contact point, F dt the step's impulse) is credited in the islands' energy
+balance (engines._contacts.balance): the balance of an island touched by a
+driven body is E + S minus that work.
+
+Not motion: the first step (no last pose), a jump of the engine's state
+(MuJoCo: mj_resetData, time set; the adapters' jump detection), and a pose
+change whose implied velocity differs from the last one by more than
+KINEMATIC_ACCEL_MAX dt (at its farthest geom point) -- a placement, not a
+drive. Such a step moves the body at zero velocity; its contacts in progress
+are interrupted without a record and warned (as the adapters do for other
+jumps), unless the user declared the placement (``adapter.placed``).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: A driven body's pose change whose implied velocity (at its farthest geom
+#: point, linear plus |d omega| times that reach) differs from the last
+#: step's by more than this times dt [m/s^2] is a placement, not motion
+#: (module docstring). 1e4 m/s^2 (~1,000 g) is above what a user's drive
+#: gives (a tennis racket's swing peaks at a few hundred g; a paddle started
+#: from rest at 1 m/s in one 1 ms step is 1e3 m/s^2) and below a teleport (a
+#: paddle put 10 cm away in one 1 ms step: 1e5 m/s^2). A smooth drive set
+#: each step never reaches it; a pose set only every n-th step (a policy at a
+#: lower rate) moves in jerks n times the drive's speed.
+KINEMATIC_ACCEL_MAX = 1e4
+
+
+def quat_twist(q_new: np.ndarray, q_old: np.ndarray) -> np.ndarray:
+    """The rotation vector (k, 3) [rad] in world axes taking orientations
+    q_old to q_new (k, 4), quaternions (w, x, y, z): axis-angle of
+    q_new q_old^-1, the shorter way round."""
+    w1, v1 = q_new[:, :1], q_new[:, 1:]
+    w0, v0 = q_old[:, :1], -q_old[:, 1:]  # the conjugate of q_old
+    w = w1 * w0 - np.sum(v1 * v0, axis=1, keepdims=True)
+    v = w1 * v0 + w0 * v1 + np.cross(v1, v0)
+    flip = w < 0.0
+    w, v = np.where(flip, -w, w), np.where(flip, -v, v)
+    s = np.linalg.norm(v, axis=1, keepdims=True)
+    angle = 2.0 * np.arctan2(s, w)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        out = np.where(s > 0.0, v * (angle / np.where(s > 0.0, s, 1.0)), 2.0 * v)
+    return out
+
+
+def rot_to_quat(R: np.ndarray) -> np.ndarray:
+    """Unit quaternions (k, 4) (w, x, y, z) of rotation matrices R (k, 3, 3)
+    (Shepperd's method: the largest of the four squared components first)."""
+    R = np.asarray(R, dtype=float).reshape(-1, 3, 3)
+    tr = np.trace(R, axis1=1, axis2=2)
+    d = np.stack([tr, R[:, 0, 0], R[:, 1, 1], R[:, 2, 2]], axis=1)
+    big = np.argmax(d, axis=1)
+    q = np.empty((R.shape[0], 4))
+    for k in range(R.shape[0]):
+        m, i = R[k], int(big[k])
+        if i == 0:
+            r = math.sqrt(max(1.0 + tr[k], 0.0))
+            q[k] = [0.5 * r, (m[2, 1] - m[1, 2]) / (2 * r), (m[0, 2] - m[2, 0]) / (2 * r), (m[1, 0] - m[0, 1]) / (2 * r)]
+        else:
+            a, b, c = (i - 1), i % 3, (i + 1) % 3
+            r = math.sqrt(max(1.0 + m[a, a] - m[b, b] - m[c, c], 0.0))
+            v = np.zeros(3)
+            v[a] = 0.5 * r
+            v[b] = (m[b, a] + m[a, b]) / (2 * r)
+            v[c] = (m[c, a] + m[a, c]) / (2 * r)
+            q[k] = [(m[c, b] - m[b, c]) / (2 * r), *v]
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+class KinematicBodies:
+    """The driven bodies of an adapter's pairs and their twists.
+
+    bodies: the driven bodies' keys (any ints; the adapter's own ids);
+    sides (P, 2) int: each pair side's position in ``bodies`` (-1: not a
+    driven body); reach (b,) [m]: each body's farthest geom point from its
+    frame's origin (the jump test and the candidate reach)."""
+
+    def __init__(self, bodies, sides: np.ndarray, reach, names):
+        self.bodies = list(bodies)
+        self.names = list(names)
+        nb = len(self.bodies)
+        self.sides = np.asarray(sides, dtype=np.int64).reshape(-1, 2)
+        self.rows = np.flatnonzero(np.any(self.sides >= 0, axis=1))  # pairs with a driven side
+        self.reach = np.asarray(reach, dtype=float).reshape(nb)
+        self.pos = np.zeros((nb, 3))  # the pose at the last step's start
+        self.quat = np.zeros((nb, 4))
+        self.have = np.zeros(nb, bool)
+        self.v = np.zeros((nb, 3))  # the twist held over this step [m/s], [rad/s], world axes
+        self.w = np.zeros((nb, 3))
+        self.v_implied = np.zeros((nb, 3))  # the last pose change's twist (the jump test's base)
+        self.w_implied = np.zeros((nb, 3))
+        self.origin = np.zeros((nb, 3))  # the frame's origin now
+        #: work the driven bodies did on each pair's other body, summed over the run [J] (P,)
+        self.work = np.zeros(self.sides.shape[0])
+        self.placements = 0  #: pose changes taken as placements (module docstring)
+        self.moving = False  # any driven body with a non-zero twist this step
+        self.slots = None  # the adapter's own index of each body, where it keeps one (pybullet's slots)
+
+    def update(self, pos, quat, dt: float, reset: bool = False, declared=()) -> list[int]:
+        """Read the bodies' poses (b, 3), (b, 4) at a new step's start; set the
+        step's twist. reset: the engine's state jumped (all taken as placed,
+        quietly: the adapter warns for its jump). declared: body positions the
+        user declared placed. Returns the positions taken as undeclared
+        placements (the adapter interrupts and warns)."""
+        pos = np.asarray(pos, dtype=float).reshape(-1, 3)
+        quat = np.asarray(quat, dtype=float).reshape(-1, 4)
+        self.origin[:] = pos
+        if reset or not self.have.all():
+            fresh = np.ones(len(self.bodies), bool) if reset else ~self.have
+        else:
+            fresh = np.zeros(len(self.bodies), bool)
+        v = (pos - self.pos) / dt
+        w = quat_twist(quat, self.quat) / dt
+        dv = (np.linalg.norm(v - self.v_implied, axis=1)
+              + np.linalg.norm(w - self.w_implied, axis=1) * self.reach)
+        placed = fresh.copy()
+        placed[list(declared)] = True
+        jump = ~placed & (dv > KINEMATIC_ACCEL_MAX * dt)
+        # the next step's test compares with this step's implied twist: zero after a placement, the
+        # twist before a jump (the drive's, the step after a jump is not another one)
+        keep = jump[:, None]
+        self.v_implied = np.where(placed[:, None], 0.0, np.where(keep, self.v_implied, v))
+        self.w_implied = np.where(placed[:, None], 0.0, np.where(keep, self.w_implied, w))
+        still = placed | jump
+        self.v = np.where(still[:, None], 0.0, v)
+        self.w = np.where(still[:, None], 0.0, w)
+        self.pos[:], self.quat[:] = pos, quat
+        self.have[:] = True
+        jumped = [int(j) for j in np.flatnonzero(jump)]
+        self.placements += len(jumped) + int(np.count_nonzero(placed & ~fresh))
+        self.moving = bool(np.any(self.v) or np.any(self.w))
+        return jumped
+
+    def velocity_at(self, j: np.ndarray, points: np.ndarray) -> np.ndarray:
+        """The driven bodies' (positions j (k,)) velocity at points (k, 3) [m/s]."""
+        return self.v[j] + np.cross(self.w[j], points - self.origin[j])
+
+    def push(self, dt: float, factor: float) -> np.ndarray:
+        """Extra candidate reach [m] (len(rows),) of the pairs with a driven side:
+        factor times what the body's farthest point moves in the step."""
+        s = np.linalg.norm(self.v, axis=1) + np.linalg.norm(self.w, axis=1) * self.reach
+        extra = np.zeros(self.rows.size)
+        for side in (0, 1):
+            j = self.sides[self.rows, side]
+            on = j >= 0
+            extra[on] += factor * s[j[on]] * dt
+        return extra
+
+    def adjust(self, pair: np.ndarray, v_rel: np.ndarray, v_com: np.ndarray, p1: np.ndarray, p2: np.ndarray,
+               c1: np.ndarray, c2: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """v_rel and v_com_rel (k, 3) of the rows ``pair`` with the driven
+        bodies' velocities added (body 1's at its contact point p1 and centre
+        of mass c1, minus body 2's at p2, c2; all (k, 3))."""
+        v_rel, v_com = np.array(v_rel, dtype=float), np.array(v_com, dtype=float)
+        for side, sign, p, c in ((0, 1.0, p1, c1), (1, -1.0, p2, c2)):
+            j = self.sides[pair, side]
+            on = np.flatnonzero(j >= 0)
+            if on.size:
+                v_rel[on] += sign * self.velocity_at(j[on], p[on])
+                v_com[on] += sign * self.velocity_at(j[on], c[on])
+        return v_rel, v_com
+
+    def credit(self, pair: np.ndarray, force: np.ndarray, p1: np.ndarray, p2: np.ndarray, dt: float) -> None:
+        """Add the step's work of the driven bodies on the other bodies of the
+        rows ``pair`` (force (k, 3) on body 1, step-averaged, at p1 / p2)."""
+        for side, sign, p in ((0, -1.0, p1), (1, 1.0, p2)):
+            j = self.sides[pair, side]
+            on = np.flatnonzero(j >= 0)
+            if on.size:  # body 2 driven: its force -F at velocity u does -(-F) . u on the contact
+                u = self.velocity_at(j[on], p[on])
+                self.work[pair[on]] += sign * np.einsum("ki,ki->k", force[on], u) * dt
+
+    def correction_work(self, pair: np.ndarray, J: np.ndarray, p1: np.ndarray, p2: np.ndarray) -> np.ndarray:
+        """The work (k,) [J] the rows' outstanding timing corrections J (k, 3)
+        (impulses on body 1) carry at the driven bodies' velocities (taken out
+        as the energy probes take J out of the velocities)."""
+        out = np.zeros(pair.size)
+        for side, sign, p in ((0, -1.0, p1), (1, 1.0, p2)):
+            j = self.sides[pair, side]
+            on = np.flatnonzero(j >= 0)
+            if on.size:
+                out[on] += sign * np.einsum("ki,ki->k", J[on], self.velocity_at(j[on], p[on]))
+        return out
