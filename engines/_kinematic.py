@@ -2,7 +2,9 @@
 mocap bodies (and bodies welded to one), pybullet's mass-0 bases moved with
 ``resetBasePositionAndOrientation`` (every mass-0 base of a pair is watched:
 pybullet moves none itself); the standard way to drive a gripper, a racket or
-a paddle.
+a paddle. A body on joints below such a body (a finger on a mocap hand, a
+link of a multibody on a moved mass-0 base) moves with its twist too, plus
+its joints' motion: the engines' velocities of it carry only the joints'.
 
 Such a body has no velocity in the engine (MuJoCo's ``cvel`` of a mocap body
 is zero; a mass-0 pybullet body moved with ``resetBasePositionAndOrientation``
@@ -124,6 +126,7 @@ class KinematicBodies:
         self.placements = 0  #: pose changes taken as placements (module docstring)
         self.moving = False  # any driven body with a non-zero twist this step
         self.slots = None  # the adapter's own index of each body, where it keeps one (pybullet's slots)
+        self.credited = False  # any work credited yet (work_on is zero until then)
 
     def update(self, pos, quat, dt: float, reset: bool = False, declared=()) -> list[int]:
         """Read the bodies' poses (b, 3), (b, 4) at a new step's start; set the
@@ -198,6 +201,30 @@ class KinematicBodies:
             if on.size:  # body 2 driven: its force -F at velocity u does -(-F) . u on the contact
                 u = self.velocity_at(j[on], p[on])
                 self.work[pair[on]] += sign * np.einsum("ki,ki->k", force[on], u) * dt
+                self.credited = True
+
+    def work_on(self, keys: np.ndarray, pair_keys: np.ndarray, J: np.ndarray, p1: np.ndarray,
+                p2: np.ndarray) -> np.ndarray:
+        """The work (b,) [J] the driven bodies did on the moving bodies ``keys`` (b,) (distinct;
+        the adapter's island keys), summed over the run, their rows' outstanding timing
+        corrections' share taken out (the energy probes take J out of the velocities).
+        pair_keys (P, 2): each pair side's key (-1: fixed or driven); J (P, 3): the manager's
+        outstanding corrections; p1, p2 (P, 3): each pair's contact points."""
+        keys = np.asarray(keys, dtype=np.int64).reshape(-1)
+        out = np.zeros(keys.size)
+        if not self.credited or not keys.size:
+            return out
+        rows = self.rows
+        A = self.work[rows] - self.correction_work(rows, J[rows], p1[rows], p2[rows])
+        order = np.argsort(keys)
+        ks = keys[order]
+        for side in (0, 1):  # credited to the pair's other (moving) side
+            other = pair_keys[rows, 1 - side]
+            on = (self.sides[rows, side] >= 0) & (other >= 0)
+            i = np.minimum(np.searchsorted(ks, other[on]), ks.size - 1)
+            hit = ks[i] == other[on]
+            np.add.at(out, order[i[hit]], A[on][hit])
+        return out
 
     def correction_work(self, pair: np.ndarray, J: np.ndarray, p1: np.ndarray, p2: np.ndarray) -> np.ndarray:
         """The work (k,) [J] the rows' outstanding timing corrections J (k, 3)

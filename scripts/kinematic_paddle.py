@@ -41,7 +41,8 @@ def mujoco_paddle(V: float, dt: float = 1e-3, shape: str = "box", omega: float =
     ``mj_step``) into the ball at rest, gravity off; with omega [rad/s] it also turns about the
     world z axis through its centre from TURN_NEAR before the ball on (mocap_quat composed each
     step: its face, 10 mm from the centre, then slides along +y at 0.01 omega where the ball
-    touches), with side [m/s] it also moves along +y."""
+    touches), with side [m/s] it also moves along +y (from -side START / V: centred on the ball
+    when it touches)."""
     import mujoco
 
     from engines.mujoco import MujocoAdapter, installed
@@ -52,7 +53,7 @@ def mujoco_paddle(V: float, dt: float = 1e-3, shape: str = "box", omega: float =
             else f'<geom name="pad" type="sphere" size="{PAD}"/>')
     xml = f"""<mujoco><option timestep="{dt}" gravity="0 0 0"/>
     <worldbody>
-      <body name="paddle" mocap="true" pos="{-R - START - half} 0 0" zaxis="1 0 0">{geom}</body>
+      <body name="paddle" mocap="true" pos="{-R - START - half} {-side * START / V} 0" zaxis="1 0 0">{geom}</body>
       <body name="ball" pos="0 0 0"><freejoint/><geom name="ball" type="sphere" size="{R}" mass="{ball.mass}"/></body>
     </worldbody></mujoco>"""
     model = mujoco.MjModel.from_xml_string(xml)
@@ -74,10 +75,11 @@ def mujoco_paddle(V: float, dt: float = 1e-3, shape: str = "box", omega: float =
             "records": ad.pop_records(), "warnings": [str(x.message) for x in w], "adapter": ad}
 
 
-def pybullet_paddle(V: float, dt: float = 1e-3, shape: str = "box") -> dict:
+def pybullet_paddle(V: float, dt: float = 1e-3, shape: str = "box", side: float = 0.0) -> dict:
     """The mass-0 paddle moved along +x at V with resetBasePositionAndOrientation between
     ``adapter.step()`` calls (a mass-0 body moves only when the user moves it: the adapter reads
-    its motion from its pose, engines._kinematic)."""
+    its motion from its pose, engines._kinematic); with side [m/s] it also moves along +y, as in
+    :func:`mujoco_paddle`."""
     import pybullet as pb
 
     from engines.pybullet import PybulletAdapter
@@ -90,8 +92,8 @@ def pybullet_paddle(V: float, dt: float = 1e-3, shape: str = "box") -> dict:
         half = 0.01 if shape == "box" else PAD
         shp = (pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[half, 0.1, 0.1], physicsClientId=c)
                if shape == "box" else pb.createCollisionShape(pb.GEOM_SPHERE, radius=PAD, physicsClientId=c))
-        x = -R - START - half
-        pad = pb.createMultiBody(0.0, shp, basePosition=[x, 0, 0], physicsClientId=c)
+        x, y = -R - START - half, -side * START / V
+        pad = pb.createMultiBody(0.0, shp, basePosition=[x, y, 0], physicsClientId=c)
         bs = pb.createCollisionShape(pb.GEOM_SPHERE, radius=R, physicsClientId=c)
         u = pb.createMultiBody(ball.mass, bs, basePosition=[0, 0, 0], physicsClientId=c)
         pb.changeDynamics(u, -1, linearDamping=0, angularDamping=0, physicsClientId=c)
@@ -100,10 +102,12 @@ def pybullet_paddle(V: float, dt: float = 1e-3, shape: str = "box") -> dict:
             warnings.simplefilter("always")
             for _ in range(int(round(RUN / V / dt))):
                 x += V * dt
-                pb.resetBasePositionAndOrientation(pad, [x, 0, 0], [0, 0, 0, 1], physicsClientId=c)
+                y += side * dt
+                pb.resetBasePositionAndOrientation(pad, [x, y, 0], [0, 0, 0, 1], physicsClientId=c)
                 ad.step()
-        v = pb.getBaseVelocity(u, physicsClientId=c)[0]
-        return {"v_out": float(v[0]), "v_side": float(math.hypot(v[1], v[2])), "records": ad.pop_records(),
+        v, spin = pb.getBaseVelocity(u, physicsClientId=c)
+        return {"v_out": float(v[0]), "v_side": float(math.hypot(v[1], v[2])), "v_y": float(v[1]),
+                "spin": np.asarray(spin, dtype=float), "records": ad.pop_records(),
                 "warnings": [str(x.message) for x in w], "adapter": ad}
     finally:
         pb.disconnect(c)

@@ -759,6 +759,13 @@ class MujocoAdapter(EngineAdapter):
             self._fused_static = False  # the resting step in one call reads no driven body's motion
         self._kin_declared: set[int] = set()  # driven bodies placed by the user since the last step (placed)
         self._kin_push = None  # the candidate reach with the driven bodies' motion, this step's (_drive)
+        #: bodies welded to the world (not the world itself, no mocap) in the pairs: taken as static; one the
+        #: user moves (model.body_pos edited) is warned once (_watch_static), not driven: make it a mocap body
+        self._static_watch = np.array(sorted({b for p in self._pairs for b, f in ((p.body1, p.fixed1),
+                                                                                  (p.body2, p.fixed2))
+                                              if f and b != 0 and not _driven(model, b)}), dtype=np.int64)
+        self._static_pose = None
+        self._static_warned: set[int] = set()
         #: contacts found deep at their onset on a link (flagged; _check_deep_onsets, engines._contacts.balance)
         self._deep = DeepOnsets()
         #: box corner contacts on a free body turning more than BOX_TURN_PER_STEP_MAX a step (_check_fast_turns)
@@ -922,25 +929,40 @@ class MujocoAdapter(EngineAdapter):
                 for s in range(n_slots)]
 
     def _driven_bodies(self):
-        """The pairs' bodies the user drives kinematically (engines._kinematic): welded to the
-        world (no joint between them and it) and moved by a mocap body, themselves or an ancestor;
-        None when no pair has one."""
+        """The mocap bodies that carry the pairs' bodies (engines._kinematic): a side's nearest
+        mocap ancestor (itself included). A body welded to it (no joint between) is taken as
+        fixed and moves with its twist; a body on joints below it moves with its twist plus its
+        own joints' motion (MuJoCo's cvel and Jacobians carry only the joints': the mocap body
+        has no dofs). None when no pair has one."""
         m = self.model
         driven = {}
         sides = np.full((len(self._pairs), 2), -1, np.int64)
         for p in self._pairs:
             for s, b in enumerate((p.body1, p.body2)):
-                if _driven(m, b):
-                    sides[p.index, s] = driven.setdefault(b, len(driven))
+                a = b
+                while a > 0 and int(m.body_mocapid[a]) < 0:
+                    a = int(m.body_parentid[a])
+                if a > 0:
+                    sides[p.index, s] = driven.setdefault(a, len(driven))
         if not driven:
             return None
         from engines._kinematic import KinematicBodies
 
         bodies = list(driven)
-        reach = []
-        for b in bodies:  # the farthest geom point of the body from its frame's origin
-            g = np.flatnonzero(m.geom_bodyid == b)
-            reach.append(float(np.max(np.linalg.norm(m.geom_pos[g], axis=1) + m.geom_rbound[g])) if g.size else 0.0)
+        # each mocap body's farthest geom point in its subtree, bounded along the chain of body offsets
+        up = np.zeros(m.nbody)  # |path| from the body's frame up to its mocap ancestor's (a bound)
+        for b in range(1, m.nbody):
+            if int(m.body_mocapid[b]) < 0 and int(m.body_parentid[b]) > 0:
+                up[b] = up[int(m.body_parentid[b])] + float(np.linalg.norm(m.body_pos[b]))
+        reach = np.zeros(len(bodies))
+        for g in range(m.ngeom):
+            a = int(m.geom_bodyid[g])
+            while a > 0 and int(m.body_mocapid[a]) < 0:
+                a = int(m.body_parentid[a])
+            if a in driven:
+                b = int(m.geom_bodyid[g])
+                r = up[b] + float(np.linalg.norm(m.geom_pos[g])) + float(m.geom_rbound[g])
+                reach[driven[a]] = max(reach[driven[a]], r)
         return KinematicBodies(bodies, sides, reach, [m.body(b).name or f"body {b}" for b in bodies])
 
     def placed(self, bodies) -> None:
@@ -964,8 +986,9 @@ class MujocoAdapter(EngineAdapter):
         kin, d = self._kin, self.data
         b = kin.bodies
         declared, self._kin_declared = self._kin_declared, set()
-        jumped = kin.update(d.xpos[b], d.xquat[b], self.timestep, reset=kind in ("jump", "first"),
-                            declared=sorted(declared))
+        # a reset or a time set (every tree jumped) restarts the poses; a qpos/qvel write of some tree does not
+        reset = kind == "first" or (kind == "jump" and self._tracker.jumped is None)
+        jumped = kin.update(d.xpos[b], d.xquat[b], self.timestep, reset=reset, declared=sorted(declared))
         for j in sorted(set(jumped) | declared):
             rows = kin.rows[np.any(kin.sides[kin.rows] == j, axis=1)]
             if j in declared:
@@ -987,6 +1010,29 @@ class MujocoAdapter(EngineAdapter):
             self._kin_push[kin.rows] += kin.push(self.timestep, CANDIDATE_FACTOR)
             self._push = self._kin_push
 
+    def _watch_static(self) -> None:
+        """Warn once per body when a body welded to the world (no mocap) moved since the last
+        step the hook computed: the adapter takes it as static, so its motion is a jump of its
+        pose that MSF does not see (a partner it moves into is found deep, one it moves away from
+        is left). Driving a body is done with a mocap body (engines._kinematic)."""
+        d, w = self.data, self._static_watch
+        pose = np.concatenate([d.xpos[w], d.xquat[w]], axis=1)
+        last, self._static_pose = self._static_pose, pose
+        if last is None or np.array_equal(pose, last):
+            return
+        for k in np.flatnonzero(np.any(pose != last, axis=1)).tolist():
+            b = int(w[k])
+            if b in self._static_warned:
+                continue
+            self._static_warned.add(b)
+            warnings.warn(f"body {self.model.body(b).name or b!r} of an MSF pair is welded to the world but moved "
+                          f"between steps (t = {float(d.time):.6g} s; model.body_pos or body_quat edited?): the "
+                          "adapter takes it as static, so its motion is a jump MSF does not integrate (a partner "
+                          "it moves into begins deep, the contact is not a drive). To drive a body, make it a "
+                          "mocap body (<body mocap=\"true\">) and set data.mocap_pos / mocap_quat each step: it "
+                          "then moves at the velocity of its pose change (docs/engines.md, \"Bodies you drive "
+                          "yourself\"). Warned once per body", RuntimeWarning, stacklevel=4)
+
     def _drive_work(self) -> None:
         """The work the driven bodies did on their partners in the step (the islands' energy probe)."""
         out, kin = self.last_forces, self._kin
@@ -1002,7 +1048,8 @@ class MujocoAdapter(EngineAdapter):
         """The driven bodies' velocities added to the rows (engines._kinematic), then
         EngineAdapter._mask."""
         drv = self._kin
-        if drv is not None and drv.moving and kin.pair.size:
+        if drv is not None and drv.moving and kin.pair.size and not getattr(kin, "driven", False):
+            kin.driven = True  # once per kinematics (a second manager.step on them must not add it again)
             pair = np.asarray(kin.pair, dtype=np.int64)
             sel = np.flatnonzero(np.any(drv.sides[pair] >= 0, axis=1))
             if sel.size:
@@ -1016,20 +1063,6 @@ class MujocoAdapter(EngineAdapter):
                 kin.v_com_rel = np.array(kin.v_com_rel, dtype=float)
                 kin.v_rel[sel], kin.v_com_rel[sel] = v, vc
         return super()._mask(kin)
-
-    def _drive_energy(self, b: np.ndarray) -> np.ndarray:
-        """The work (b,) [J] the driven bodies did on the bodies of keys b (root ids), their
-        outstanding timing corrections' share taken out (the energy probe takes J out)."""
-        kin, mgr = self._kin, self.manager
-        out = np.zeros(b.size)
-        rows = kin.rows
-        A = kin.work[rows] - kin.correction_work(rows, mgr.J[rows], self._p1[rows], self._p2[rows])
-        for side in (0, 1):  # credited to the pair's other (moving) side
-            other = self._keys[rows, 1 - side]
-            on = (kin.sides[rows, side] >= 0) & (other >= 0)
-            for k, key in zip(np.flatnonzero(on), other[on]):
-                out[b == key] += A[k]
-        return out
 
     # -- contract --------------------------------------------------------------
     @property
@@ -1195,6 +1228,8 @@ class MujocoAdapter(EngineAdapter):
             push = self._push
             if self._kin is not None:
                 self._drive(kind)
+            if self._static_watch.size:
+                self._watch_static()
             self._in_hook = True
             self._unheld = None  # the generalised force of the step's forces not held (set by _compute)
             self._step_start = self._start_state(data) if self.exact_offset else None
@@ -2261,7 +2296,7 @@ class MujocoAdapter(EngineAdapter):
         wl = np.einsum("kji,kj->ki", R, w)  # body axes
         T = 0.5 * mass * np.einsum("ki,ki->k", v, v) + 0.5 * np.einsum("ki,ki->k", wl * I, wl)
         if self._kin is not None:  # the driven bodies' work on them (engines._kinematic)
-            T = T - self._drive_energy(b)
+            T = T - self._kin.work_on(b, self._keys, mgr.J, self._p1, self._p2)
         U = -mass * (d.xipos[b] @ g)
         q = mass * (v @ g)
         bad = ~self._free_body[b]

@@ -445,7 +445,7 @@ class PybulletAdapter(EngineAdapter):
         #: the pairs' mass-0 bases, which only the user moves (resetBasePositionAndOrientation): each
         #: moves at the twist of its last pose change (engines._kinematic); None: no such body
         self._kin = self._driven_bodies()
-        self._kin_R = None  # their rotations at the last step start (B_d, 3, 3)
+        self._kin_R = None  # their base poses (position, quaternion x y z w) at the last step start (b, 7)
         #: jumps seen (bodies that moved other than by one adapter step), contacts they interrupted
         self.jumps = 0
         self.interrupted = 0
@@ -955,41 +955,54 @@ class PybulletAdapter(EngineAdapter):
         return self.time
 
     def _driven_bodies(self):
-        """The pairs' mass-0 bases (fixed in pybullet, moved only by the user) as
-        engines._kinematic.KinematicBodies over their slots, or None."""
+        """The pairs' bodies with a mass-0 base (fixed in pybullet, moved only by the user with
+        resetBasePositionAndOrientation), as engines._kinematic.KinematicBodies over those bases'
+        unique ids: the base itself (an infinite mass moving at its twist) and the links of a
+        multibody on such a base (their getLinkState velocities carry only the joints' motion:
+        the base's twist at the contact point is added). None when there is none."""
         from engines._kinematic import KinematicBodies
 
-        slots = [j for j, b in enumerate(self._body_list) if self._b_fixed[j]]
-        if not slots:
+        uids = []
+        for b in self._body_list:
+            if self._base_fixed(b[0]) and b[0] not in uids:
+                uids.append(b[0])
+        if not uids:
             return None
-        at = {j: k for k, j in enumerate(slots)}
-        sides = np.array([[at.get(int(j1), -1), at.get(int(j2), -1)] for j1, j2 in self._slot],
+        at = {u: k for k, u in enumerate(uids)}
+        sides = np.array([[at.get(b1[0], -1), at.get(b2[0], -1)] for b1, b2 in self._bodies],
                          np.int64).reshape(-1, 2)
-        reach = np.zeros(len(slots))
-        for i, (s1, s2) in enumerate(self._shapes):  # each shape's farthest point from the body's frame
-            for side, s in ((0, s1), (1, s2)):
-                k = sides[i, side]
-                if k >= 0:
-                    reach[k] = max(reach[k], float(np.linalg.norm(s.pos)) + _shape_reach(s))
-        kin = KinematicBodies(slots, sides, reach, [self._body_name(self._body_list[j]) for j in slots])
-        kin.slots = np.array(slots, np.int64)
+        reach = np.zeros(len(uids))
+        c = self.client
+        for k, u in enumerate(uids):  # the farthest point of its shapes from the base's frame (a bound)
+            for i, (s1, s2) in enumerate(self._shapes):
+                for side, sh, b in ((0, s1, self._bodies[i][0]), (1, s2, self._bodies[i][1])):
+                    if sides[i, side] != k:
+                        continue
+                    r = float(np.linalg.norm(sh.pos)) + _shape_reach(sh)
+                    if b[1] >= 0:  # a link: its frame's distance from the base's now
+                        st = pb.getLinkState(u, b[1], physicsClientId=c)
+                        r += float(np.linalg.norm(np.subtract(st[0], pb.getBasePositionAndOrientation(
+                            u, physicsClientId=c)[0])))
+                    reach[k] = max(reach[k], r)
+        names = [(pb.getBodyInfo(u, physicsClientId=c)[1].decode() or f"body{u}") for u in uids]
+        kin = KinematicBodies(uids, sides, reach, names)
+        kin.slots = np.array(uids, np.int64)
         return kin
 
     def _drive(self, bodies: _Bodies) -> None:
-        """At a step's start: the driven (mass-0) bodies' twist for the step from their
+        """At a step's start: the driven (mass-0) bases' twist for the step from their
         pose change (engines._kinematic), their contacts interrupted at an undeclared
         placement, and their pairs' candidate reach for the step."""
-        kin = self._kin
-        j = kin.slots
-        pos, R = bodies.com[j], bodies.rot[j]
-        declared = [k for k, jj in enumerate(j.tolist()) if jj in self._declared]
-        if (not declared and not kin.moving and kin.have.all() and np.array_equal(pos, kin.pos)
-                and np.array_equal(R, self._kin_R)):
+        kin, c = self._kin, self.client
+        po = np.array([[*p, *q] for p, q in (pb.getBasePositionAndOrientation(int(u), physicsClientId=c)
+                                              for u in kin.slots)], float).reshape(-1, 7)
+        declared = [k for k, u in enumerate(kin.slots.tolist())
+                    if any(self._body_list[j][0] == u for j in self._declared)]
+        if not declared and not kin.moving and kin.have.all() and np.array_equal(po, self._kin_R):
             return  # nothing moved (the usual case: a floor)
-        from engines._kinematic import rot_to_quat
-
-        jumped = kin.update(pos, rot_to_quat(R), self._dt, declared=declared)
-        self._kin_R = R.copy()
+        self._kin_R = po
+        quat = po[:, [6, 3, 4, 5]]  # pybullet's (x, y, z, w) as (w, x, y, z)
+        jumped = kin.update(po[:, :3], quat, self._dt, declared=declared)
         for k in sorted(set(jumped) | set(declared)):
             rows = kin.rows[np.any(kin.sides[kin.rows] == k, axis=1)]
             if k in declared:
@@ -1014,7 +1027,8 @@ class PybulletAdapter(EngineAdapter):
         """The driven bodies' velocities added to the rows (engines._kinematic), then
         EngineAdapter._mask."""
         drv = self._kin
-        if drv is not None and drv.moving and kin.pair.size:
+        if drv is not None and drv.moving and kin.pair.size and not getattr(kin, "driven", False):
+            kin.driven = True  # once per kinematics (the limit retrial steps the manager on them again)
             pair = np.asarray(kin.pair, dtype=np.int64)
             sel = np.flatnonzero(np.any(drv.sides[pair] >= 0, axis=1))
             if sel.size:
@@ -1038,20 +1052,6 @@ class PybulletAdapter(EngineAdapter):
         if sel.size:
             pt = np.asarray(out.point, dtype=float)[sel]
             kin.credit(pair[sel], np.asarray(out.force, dtype=float)[sel], pt, pt, self._dt)
-
-    def _drive_energy(self, k: np.ndarray) -> np.ndarray:
-        """The work (b,) [J] the driven bodies did on the bodies of keys k, their outstanding
-        timing corrections' share taken out (the energy probe takes J out)."""
-        kin, mgr = self._kin, self.manager
-        out = np.zeros(k.size)
-        rows = kin.rows
-        A = kin.work[rows] - kin.correction_work(rows, mgr.J[rows], self._pt[rows], self._pt[rows])
-        for side in (0, 1):  # credited to the pair's other (moving) side
-            other = self._keys[rows, 1 - side]
-            on = (kin.sides[rows, side] >= 0) & (other >= 0)
-            for r, key in zip(np.flatnonzero(on), other[on]):
-                out[k == key] += A[r]
-        return out
 
     def placed(self, bodies) -> None:
         """Say that ``bodies`` ((body unique id, link index) or body unique ids)
@@ -2309,7 +2309,7 @@ class PybulletAdapter(EngineAdapter):
                 O, q[r] = self._correction_energy(uid, bodies)
                 U[r] = self.multibody_work.get(uid, 0.0) - O - T[r]
         if self._kin is not None:  # the driven bodies' work on them (engines._kinematic)
-            U = U - self._drive_energy(k)
+            U = U - self._kin.work_on(k, self._keys, mgr.J, self._pt, self._pt)
         return T, U, q, mass
 
     def _coupling_blocks(self, pp, pq):
