@@ -125,7 +125,7 @@ class KinematicBodies:
         self.work = np.zeros(self.sides.shape[0])
         self.placements = 0  #: pose changes taken as placements (module docstring)
         self.moving = False  # any driven body with a non-zero twist this step
-        self.slots = None  # the adapter's own index of each body, where it keeps one (pybullet's slots)
+        self.uids = None  # pybullet: the bases' unique ids
         self.credited = False  # any work credited yet (work_on is zero until then)
 
     def update(self, pos, quat, dt: float, reset: bool = False, declared=()) -> list[int]:

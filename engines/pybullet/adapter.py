@@ -986,7 +986,7 @@ class PybulletAdapter(EngineAdapter):
                     reach[k] = max(reach[k], r)
         names = [(pb.getBodyInfo(u, physicsClientId=c)[1].decode() or f"body{u}") for u in uids]
         kin = KinematicBodies(uids, sides, reach, names)
-        kin.slots = np.array(uids, np.int64)
+        kin.uids = [int(u) for u in uids]
         return kin
 
     def _drive(self, bodies: _Bodies) -> None:
@@ -994,13 +994,13 @@ class PybulletAdapter(EngineAdapter):
         pose change (engines._kinematic), their contacts interrupted at an undeclared
         placement, and their pairs' candidate reach for the step."""
         kin, c = self._kin, self.client
-        po = np.array([[*p, *q] for p, q in (pb.getBasePositionAndOrientation(int(u), physicsClientId=c)
-                                              for u in kin.slots)], float).reshape(-1, 7)
-        declared = [k for k, u in enumerate(kin.slots.tolist())
-                    if any(self._body_list[j][0] == u for j in self._declared)]
-        if not declared and not kin.moving and kin.have.all() and np.array_equal(po, self._kin_R):
-            return  # nothing moved (the usual case: a floor)
-        self._kin_R = po
+        raw = list(map(pb.getBasePositionAndOrientation, kin.uids, repeat(c)))  # ((x, y, z), (qx, qy, qz, qw))
+        declared = [k for k, u in enumerate(kin.uids) if any(self._body_list[j][0] == u for j in self._declared)] \
+            if self._declared else []
+        if not declared and not kin.moving and raw == self._kin_R:
+            return  # nothing moved (the usual case: a floor; ~1 us a base, compared as Python tuples)
+        self._kin_R = raw
+        po = np.array([[*p, *q] for p, q in raw], float).reshape(-1, 7)
         quat = po[:, [6, 3, 4, 5]]  # pybullet's (x, y, z, w) as (w, x, y, z)
         jumped = kin.update(po[:, :3], quat, self._dt, declared=declared)
         for k in sorted(set(jumped) | set(declared)):
