@@ -113,6 +113,71 @@ def pybullet_paddle(V: float, dt: float = 1e-3, shape: str = "box", side: float 
         pb.disconnect(c)
 
 
+def accelerating(a: float, dt: float, engine: str = "mujoco", V0: float = 0.5, gap: float = 5e-3) -> dict:
+    """A box paddle driven at x(t) = x0 + V0 t + a t^2 / 2 (its pose set from the step's start
+    time before each step), its face ``gap`` from the ball at t = 0, into the ball at rest: the
+    ball's velocity when the strike's record appears (before the accelerating paddle catches it
+    again) and the record."""
+    law, ball = _law("box")
+    x0 = -R - gap - 0.01  # the paddle's centre; its half thickness is 0.01 m
+    out = {}
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        if engine == "mujoco":
+            import mujoco
+
+            from engines.mujoco import MujocoAdapter
+
+            xml = f"""<mujoco><option timestep="{dt}" gravity="0 0 0"/><worldbody>
+              <body name="paddle" mocap="true" pos="{x0} 0 0" zaxis="1 0 0">
+                <geom name="pad" type="box" size="0.1 0.1 0.01"/></body>
+              <body name="ball"><freejoint/><geom name="ball" type="sphere" size="{R}" mass="{ball.mass}"/></body>
+              </worldbody></mujoco>"""
+            model = mujoco.MjModel.from_xml_string(xml)
+            data = mujoco.MjData(model)
+            ad = MujocoAdapter(model, data, [PairSpec("ball", "pad", law)])
+
+            def place(x):
+                data.mocap_pos[0, 0] = x
+
+            def ball_v():
+                return float(data.qvel[0])
+        else:
+            import pybullet as pb
+
+            from engines.pybullet import PybulletAdapter
+
+            c = pb.connect(pb.DIRECT)
+            pb.setGravity(0, 0, 0, physicsClientId=c)
+            pb.setTimeStep(dt, physicsClientId=c)
+            pad = pb.createMultiBody(0.0, pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.01, 0.1, 0.1],
+                                                                  physicsClientId=c),
+                                     basePosition=[x0, 0, 0], physicsClientId=c)
+            u = pb.createMultiBody(ball.mass, pb.createCollisionShape(pb.GEOM_SPHERE, radius=R, physicsClientId=c),
+                                   physicsClientId=c)
+            pb.changeDynamics(u, -1, linearDamping=0, angularDamping=0, physicsClientId=c)
+            ad = PybulletAdapter(c, [PairSpec((u, -1), (pad, -1), law)])
+
+            def place(x):
+                pb.resetBasePositionAndOrientation(pad, [x, 0, 0], [0, 0, 0, 1], physicsClientId=c)
+
+            def ball_v():
+                return float(pb.getBaseVelocity(u, physicsClientId=c)[0][0])
+        try:
+            for k in range(int(round(0.05 / dt))):
+                t = k * dt  # the step's start time
+                place(x0 + V0 * t + 0.5 * a * t * t)
+                ad.step()
+                if ad.records:
+                    out = {"v_out": ball_v(), "record": ad.records[0]}
+                    break
+        finally:
+            if engine != "mujoco":
+                pb.disconnect(c)
+    out["warnings"] = [str(x.message) for x in w]
+    return out
+
+
 if __name__ == "__main__":
     engine = sys.argv[1] if len(sys.argv) > 1 else "mujoco"
     V = float(sys.argv[2]) if len(sys.argv) > 2 else 1.0
