@@ -283,23 +283,34 @@ def test_mujoco_static_body_moved_is_warned():
 GALILEO_ATOL = 1e-8
 
 
-def test_mujoco_oblique_paddle_is_the_ball_thrown_at_it():
+#: MuJoCo's sphere paddle in the Galilean check: its first-touch sweep (engines._sweep, in the compiled
+#: kernel) does not see the driven velocity, so the record's normal differs (cor_n -0.33 %, cor_t +3.4 %
+#: against the thrown ball's, docs/engines.md) while the ball's exit velocity relative to the paddle
+#: agrees within 1.4e-4 m/s (measured); bound 3e-4 m/s.
+SPHERE_SWEEP_ATOL = 3e-4
+
+
+@pytest.mark.parametrize("shape", ["box", "sphere"])
+def test_mujoco_oblique_paddle_is_the_ball_thrown_at_it(shape):
     """A mocap paddle moving at (1, 0.5) m/s (normal, along its face) into the ball at rest equals
     the ball thrown at (-1, -0.5) m/s onto the paddle at rest (Galilean invariance): the tangential
     slip of the driven body enters the contact as the ball's own would. Both at 1 ms (the engine's
-    oblique result against the reference solver is another matter: -0.2 % on cor_t here)."""
+    oblique result against the reference solver is another matter: -0.2 % on cor_t here). The
+    sphere paddle's record is not held to it (SPHERE_SWEEP_ATOL)."""
     _skip("mujoco")
     import mujoco
 
     from engines.base import PairSpec
     from engines.mujoco import MujocoAdapter
 
-    drv = PADDLE.mujoco_paddle(1.0, 1e-3, "box", side=0.5)
-    law, ball = PADDLE._law("box")
+    drv = PADDLE.mujoco_paddle(1.0, 1e-3, shape, side=0.5)
+    law, ball = PADDLE._law(shape)
     R = PADDLE.R
+    half = 0.01 if shape == "box" else PADDLE.PAD
+    geom = ('<geom name="pad" type="box" size="0.1 0.1 0.01"/>' if shape == "box"
+            else f'<geom name="pad" type="sphere" size="{PADDLE.PAD}"/>')
     m = mujoco.MjModel.from_xml_string(f"""<mujoco><option timestep="0.001" gravity="0 0 0"/><worldbody>
-      <body name="paddle" mocap="true" pos="{-R - 0.01} 0 0" zaxis="1 0 0">
-        <geom name="pad" type="box" size="0.1 0.1 0.01"/></body>
+      <body name="paddle" mocap="true" pos="{-R - half} 0 0" zaxis="1 0 0">{geom}</body>
       <body name="ball" pos="0.01 0.005 0"><freejoint/><geom name="ball" type="sphere" size="{R}" mass="{ball.mass}"/>
       </body></worldbody></mujoco>""")
     d = mujoco.MjData(m)
@@ -307,31 +318,39 @@ def test_mujoco_oblique_paddle_is_the_ball_thrown_at_it():
     ad = MujocoAdapter(m, d, [PairSpec("ball", "pad", law)])
     ad.step(60)
     (thrown,), (driven,) = ad.pop_records(), drv["records"]
-    for key in ("cor_n", "cor_t", "spin_out", "x_max", "F_max"):
-        assert getattr(driven, key) == pytest.approx(getattr(thrown, key), rel=GALILEO_ATOL, abs=GALILEO_ATOL), key
-    assert drv["v_out"] - 1.0 == pytest.approx(d.qvel[0], abs=GALILEO_ATOL)  # relative to the paddle
-    assert drv["v_y"] - 0.5 == pytest.approx(d.qvel[1], abs=GALILEO_ATOL)
-    assert drv["spin"][2] == pytest.approx(d.qvel[5], abs=GALILEO_ATOL)
+    tol = GALILEO_ATOL if shape == "box" else SPHERE_SWEEP_ATOL
+    if shape == "box":
+        for key in ("cor_n", "cor_t", "spin_out", "x_max", "F_max"):
+            assert getattr(driven, key) == pytest.approx(getattr(thrown, key), rel=tol, abs=tol), key
+    assert drv["v_out"] - 1.0 == pytest.approx(d.qvel[0], abs=tol)  # relative to the paddle
+    assert drv["v_y"] - 0.5 == pytest.approx(d.qvel[1], abs=tol)
+    if shape == "box":
+        assert drv["spin"][2] == pytest.approx(d.qvel[5], abs=tol)
 
 
-def test_pybullet_oblique_paddle_is_the_ball_thrown_at_it():
+@pytest.mark.parametrize("shape", ["box", "sphere"])
+def test_pybullet_oblique_paddle_is_the_ball_thrown_at_it(shape):
     """The Galilean check of test_mujoco_oblique_paddle_is_the_ball_thrown_at_it in pybullet: the
-    mass-0 paddle moved at (1, 0.5) m/s against the ball thrown at (-1, -0.5) m/s at it at rest."""
+    mass-0 paddle moved at (1, 0.5) m/s against the ball thrown at (-1, -0.5) m/s at it at rest;
+    also with the sphere paddle (measured equal to 1e-15: pybullet's sphere pair takes the same
+    normal either way, where MuJoCo's first-touch sweep does not see the driven velocity,
+    docs/engines.md)."""
     _skip("pybullet")
     import pybullet as pb
 
     from engines.base import PairSpec
     from engines.pybullet import PybulletAdapter
 
-    drv = PADDLE.pybullet_paddle(1.0, 1e-3, "box", side=0.5)
-    law, ball = PADDLE._law("box")
+    drv = PADDLE.pybullet_paddle(1.0, 1e-3, shape, side=0.5)
+    law, ball = PADDLE._law(shape)
     c = pb.connect(pb.DIRECT)
     try:
         pb.setGravity(0, 0, 0, physicsClientId=c)
         pb.setTimeStep(1e-3, physicsClientId=c)
-        pad = pb.createMultiBody(0.0, pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.01, 0.1, 0.1],
-                                                              physicsClientId=c),
-                                 basePosition=[-PADDLE.R - 0.01, 0, 0], physicsClientId=c)
+        shp = (pb.createCollisionShape(pb.GEOM_BOX, halfExtents=[0.01, 0.1, 0.1], physicsClientId=c)
+               if shape == "box" else pb.createCollisionShape(pb.GEOM_SPHERE, radius=PADDLE.PAD, physicsClientId=c))
+        half = 0.01 if shape == "box" else PADDLE.PAD
+        pad = pb.createMultiBody(0.0, shp, basePosition=[-PADDLE.R - half, 0, 0], physicsClientId=c)
         u = pb.createMultiBody(ball.mass, pb.createCollisionShape(pb.GEOM_SPHERE, radius=PADDLE.R,
                                                                   physicsClientId=c),
                                basePosition=[0.01, 0.005, 0], physicsClientId=c)
