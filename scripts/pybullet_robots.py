@@ -8,6 +8,8 @@ docs/engines.md quotes (issue 13):
     .venv/bin/python scripts/pybullet_robots.py seeds        # the robots_pybullet benchmark's ant, seeds 13, 1-4,
                                                              # before (no second trial, no depth anchoring) and now
     .venv/bin/python scripts/pybullet_robots.py landing      # ant.xml put down on its ankle limits, 0.3 s at 10 ms
+    .venv/bin/python scripts/pybullet_robots.py fall --model humanoid.xml --seeds 13 1
+                                                             # the benchmark's rest, MSF and pybullet's own contact
 
 ``--no-trial`` makes the adapters without ``limit_trial`` (a joint within
 JOINT_LIMIT_TOL of a limit taken as held, as before the trial step);
@@ -16,8 +18,9 @@ JOINT_LIMIT_TOL of a limit taken as held, as before the trial step);
 pybullet's own contact gives each pair, the ant's feet 0.75, the
 humanoid's 0.25), ``none`` (the paper's law, no cap) or a number;
 ``seeds --model humanoid.xml`` runs the benchmark's humanoid instead,
-``seeds --variants before retrial anchor now`` the adapter variants of
-VARIANTS side by side (default: before and now), ``--seeds`` other seeds.
+``seeds --variants before retrial anchor fd now`` the adapter variants of
+VARIANTS side by side (default: before and now; fd: a link contact's a_ext
+from the finite difference, not the trial), ``--seeds`` other seeds.
 
 Each run puts the body on a steel floor (natural rubber, gravity 9.81
 m/s^2), no torques, and prints the mechanical energy plus the elastic
@@ -196,9 +199,10 @@ def twist(dt: float, seconds: float, wz: float = 5.0) -> str:
 
 
 #: seeds' adapter variants side by side: name -> PybulletAdapter options (--variants)
-VARIANTS = {"before": {"anchor_depth": False, "limit_retrial": False},
-            "retrial": {"anchor_depth": False, "limit_retrial": True},
-            "anchor": {"anchor_depth": True, "limit_retrial": False},
+VARIANTS = {"before": {"anchor_depth": False, "limit_retrial": False, "trial_a_ext": False},
+            "retrial": {"anchor_depth": False, "limit_retrial": True, "trial_a_ext": False},
+            "anchor": {"anchor_depth": True, "limit_retrial": False, "trial_a_ext": False},
+            "fd": {"trial_a_ext": False},
             "now": {},
             "trial": {"trial_a_ext": True}}
 
@@ -247,9 +251,63 @@ def seeds(tell: bool, mu, model: str = "ant.xml", variants=("before", "now"), wh
     return out
 
 
+def fall(model: str, which, every: int = 100) -> list[str]:
+    """The benchmark's robot (benchmarks.robots_pybullet: 1,000 steps of the
+    seeded torques, then 1,000 without) with MSF (the defaults, the torques
+    told) and with pybullet's own contact, the same script: every ``every``
+    rest steps the base height, the highest link, the kinetic and the
+    kinetic + potential energy. Whether a robot that moves at rest does so
+    with pybullet's own contact too (the humanoid: a ragdoll, loadMJCF drops
+    its joint damping)."""
+    import sys
+
+    sys.path.insert(0, os.path.join(os.path.dirname(os.path.abspath(__file__)), os.pardir))
+    from benchmarks.robots_pybullet import MODELS, drive
+    from engines.pybullet.robots import _mechanical
+
+    out = []
+    path = os.path.join(pybullet_data.getDataPath(), "mjcf", model)
+    for seed in which:
+        for msf in (False, True):
+            c = scenes.new_client(MODELS[model], gravity=9.81)
+            try:
+                robots, floor, pairs, shapes = load_mjcf_with_msf_floor(c, path, PAIR, mu=MU)
+                uid = robots[0]
+                joints, bound = drive(c, uid, path)
+                # without an adapter the floor pairs keep pybullet's own contact (the adapter switches it off)
+                ad = PybulletAdapter(c, pairs, link_shapes=shapes, limit_trial=TRIAL) if msf else None
+                rng = np.random.default_rng(seed)
+                for _ in range(1000):
+                    tau = rng.uniform(-1.0, 1.0, len(joints)) * bound
+                    if ad is not None:
+                        ad.set_joint_torques(uid, joints, tau)
+                        ad.step()
+                    else:
+                        pb.setJointMotorControlArray(uid, joints, pb.TORQUE_CONTROL, forces=tau.tolist(),
+                                                     physicsClientId=c)
+                        pb.stepSimulation(physicsClientId=c)
+                pb.setJointMotorControlArray(uid, joints, pb.TORQUE_CONTROL, forces=[0.0] * len(joints),
+                                             physicsClientId=c)
+                out.append(f"{model}, seed {seed}, {'MSF' if msf else 'pybullet contact'}: rest step, base height [m], "
+                           "highest link [m], kinetic [J], kinetic + potential [J]")
+                for k in range(1001):
+                    if k % every == 0:
+                        T, U, _ = _mechanical(c, robots)
+                        z = pb.getBasePositionAndOrientation(uid, physicsClientId=c)[0][2]
+                        top = max(pb.getLinkState(uid, j, physicsClientId=c)[0][2]
+                                  for j in range(pb.getNumJoints(uid, physicsClientId=c)))
+                        out.append(f"   {k:5d} {z:.3f} {top:.3f} {T:.3g} {T + U:.2f}")
+                    if k < 1000:
+                        ad.step() if ad is not None else pb.stepSimulation(physicsClientId=c)
+                print("\n".join(out[-12:]), flush=True)
+            finally:
+                pb.disconnect(c)
+    return out
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("case", choices=("dumbbell", "ant", "feet", "twist", "seeds", "landing"))
+    ap.add_argument("case", choices=("dumbbell", "ant", "feet", "twist", "seeds", "landing", "fall"))
     ap.add_argument("--no-trial", action="store_true", help="adapters without limit_trial")
     ap.add_argument("--late", action="store_true", help="seeds: also with the torques set through pybullet's call")
     ap.add_argument("--mu", default="engine",
@@ -269,6 +327,8 @@ if __name__ == "__main__":
     elif args.case == "seeds":
         for tell in (True, False) if args.late else (True,):
             print("\n".join(seeds(tell, MU, args.model, args.variants, args.seeds)[-(len(args.seeds) + 3):]))
+    elif args.case == "fall":
+        fall(args.model, args.seeds)
     elif args.case == "feet":
         print(feet(1e-2, 1.0))
     elif args.case == "landing":

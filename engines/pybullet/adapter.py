@@ -289,7 +289,14 @@ class PybulletAdapter(EngineAdapter):
         point's acceleration from everything but the contacts) taken from the
         trial step's own velocity change less its MSF loads' (:meth:`_trial_a_ext`),
         this step's, instead of the finite difference of the last step's
-        velocities (default False: docs/engines.md has both measured).
+        velocities. Default True: given the held joints pybullet's step is
+        affine in the loads to a few 1e-5 (measured: the real step's
+        generalized velocity against the trial's plus dt M_H^-1 (Q - Q_trial),
+        within 3e-8 with no joint held, median 9e-6 with the ant's four
+        ankles held at rest), so a_ext is the step's own; the finite
+        difference (False) is the last step's, and left the ant's rest after
+        its torques single steps of 0.03-0.73 J above RestEnergy's bound
+        (docs/engines.md). No effect without ``limit_trial``.
     compiled: do the per-step array work of the fast pairs (detection,
         velocities, a_ext, W, the cross-pair correction, the forces summed
         per body) in the numba kernels of :mod:`engines.pybullet._kernels`
@@ -302,7 +309,7 @@ class PybulletAdapter(EngineAdapter):
     def __init__(self, client: int, pairs: list[PairSpec], compiled: bool = True, *, edge_radii: dict | None = None,
                  curvature: dict | None = None, link_shapes: dict | None = None, mesh_slots: dict | None = None,
                  limit_trial: bool = False, limit_retrial: bool = True, anchor_depth: bool = True,
-                 trial_a_ext: bool = False):
+                 trial_a_ext: bool = True):
         if not isinstance(client, int) or not pb.isConnected(client):
             raise ValueError(f"client = {client!r} is not a connected pybullet physics client")
         if not isinstance(compiled, bool):
