@@ -156,6 +156,9 @@ def targets_md(records: list[dict]) -> list[str]:
     if mj:
         rows.append(("MuJoCo, 1,000 spheres: MSF / no contact", mj["ratio_msf_over_nocontact"], "<= 1.5"))
         rows.append(("MuJoCo, 1,000 spheres: MSF / built-in", mj["ratio_msf_over_builtin"], "<= 0.5"))
+        for w, how in (("msf_loop", "the user's own mj_step loop"), ("msf_step1", "adapter.step(1)")):
+            if f"ratio_{w}_over_builtin" in mj:
+                rows.append((f"MuJoCo, 1,000 spheres: MSF / built-in, {how}", mj[f"ratio_{w}_over_builtin"], "<= 0.5"))
     pb = find("per_step", engine="pybullet", n_bodies=1000)
     if pb:
         rows.append(("pybullet, 1,000 spheres: MSF / built-in", pb["ratio_msf_over_builtin"], "<= 1.25"))

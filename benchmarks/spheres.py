@@ -11,6 +11,11 @@ steel plate; gravity 9.81 m/s^2; dt = 1 ms; seeded initial gaps in
 - ``nocontact``: no collision at all (MuJoCo: the spheres collide with
   nothing; pybullet: collision filter masks 0).
 
+In MuJoCo the MSF variant is also timed as a user steps it (the same
+adapter and MjData, interleaved with the others): ``msf`` is
+``adapter.step(k)``, ``msf_loop`` the user's own ``mujoco.mj_step`` loop
+under the installed hook, ``msf_step1`` a loop of ``adapter.step(1)``.
+
 After WARMUP steps (0.5 s: every sphere has bounced and come to rest, so
 the timed steps are N resting contacts, which MSF handles on the manager's
 settled path) each variant runs STEPS steps per repeat, the variants
@@ -98,6 +103,26 @@ def mujoco_variant(n: int, mode: str):
     return step, lambda: _msf_info(adapter.manager), adapter
 
 
+def mujoco_msf_ways(adapter) -> dict:
+    """The MSF variant's other ways of stepping (module docstring), on its adapter and MjData:
+    ``msf_loop`` the user's own ``mujoco.mj_step`` loop, ``msf_step1`` a loop of
+    ``adapter.step(1)``; each pops the records after its k steps, as ``msf`` (``adapter.step(k)``)."""
+    import mujoco
+
+    m, d = adapter.model, adapter.data
+
+    def loop(k):
+        for _ in range(k):
+            mujoco.mj_step(m, d)
+        adapter.pop_records()
+
+    def one(k):
+        for _ in range(k):
+            adapter.step(1)
+        adapter.pop_records()
+    return {"msf_loop": loop, "msf_step1": one}
+
+
 def _msf_info(manager) -> dict:
     return {"contacts": manager.active_count, "settled": int(manager.last_step_info.get("settled", 0))}
 
@@ -175,8 +200,10 @@ def measure(engine: str, n: int, repeats: int) -> dict:
             handles.append(h)
             step(WARMUP)
             variants[mode] = (step, info)
+            if engine == "mujoco" and mode == "msf":
+                variants.update({w: (f, info) for w, f in mujoco_msf_ways(h).items()})
         if engine == "mujoco":  # MuJoCo's callback is global: the others run without the MSF variant's
-            variants = {m: (v if m == "msf" else (_without_hook(v[0]), v[1])) for m, v in variants.items()}
+            variants = {m: (v if m.startswith("msf") else (_without_hook(v[0]), v[1])) for m, v in variants.items()}
         times = {m: [] for m in variants}
         for _ in range(repeats):
             for m, (step, _) in variants.items():  # interleaved: noise hits every variant alike
@@ -187,7 +214,11 @@ def measure(engine: str, n: int, repeats: int) -> dict:
         for h in handles:
             _close(engine, h)
     med = {m: float(np.median(t)) for m, t in times.items()}
-    return {
+    ways = {}
+    for w in ("msf_loop", "msf_step1"):
+        if w in med:
+            ways.update({f"{w}_step_s": med[w], f"ratio_{w}_over_builtin": med[w] / med["builtin"]})
+    return {**ways,
         "name": "per_step", "engine": engine, "n_bodies": n, "dt": DT,
         "msf_step_s": med["msf"], "builtin_step_s": med["builtin"], "nocontact_step_s": med["nocontact"],
         "ratio_msf_over_builtin": med["msf"] / med["builtin"],
@@ -215,6 +246,17 @@ def run(quick: bool = False) -> list[dict]:
                             "reason": f"{type(exc).__name__}: {exc}"[:300]})
                 continue
             log(f"  msf {r['msf_step_s'] * 1e3:.3f} ms, builtin {r['builtin_step_s'] * 1e3:.3f} ms, "
-                f"no contact {r['nocontact_step_s'] * 1e3:.3f} ms per step")
+                f"no contact {r['nocontact_step_s'] * 1e3:.3f} ms per step"
+                + (f"; msf as the user's mj_step loop {r['msf_loop_step_s'] * 1e3:.3f} ms, as step(1) "
+                   f"{r['msf_step1_step_s'] * 1e3:.3f} ms" if "msf_loop_step_s" in r else ""))
             out.append(r)
     return out
+
+
+if __name__ == "__main__":  # one size, MuJoCo: python -m benchmarks.spheres [N] [repeats]
+    import json
+    import sys
+
+    r = measure("mujoco", int(sys.argv[1]) if len(sys.argv) > 1 else 1000, int(sys.argv[2]) if len(sys.argv) > 2 else 7)
+    r.pop("all_s")
+    print(json.dumps(r, indent=1))

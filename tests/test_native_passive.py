@@ -1,14 +1,19 @@
 """The MuJoCo adapter's native mjcb_passive (engines.mujoco._native) against
-the Python hook it stands in front of: ``MujocoAdapter.step`` takes its
-resting steps in compiled code with no Python between MuJoCo and the
-kernel, and hands every other call to the Python hook. The same scene
-stepped with the native hook and without it must give the same engine
+the Python hook it stands in front of: while the adapter's hook is
+installed, resting steps are taken in compiled code with no Python between
+MuJoCo and the kernel, whoever calls ``mj_step`` (``adapter.step(n)``,
+``step(1)``, a user's own loop, the viewer's loop with ``mj_forward``
+between steps), and every other call goes to the Python hook. The same
+scene stepped with the native hook and without it must give the same engine
 state, forces, contact state, records and warnings bit for bit, also where
-the native hook stops part-way (a state written between ``step`` calls: the
+the native hook stops part-way (a state written between steps: the
 tracker's jump; a step that is not a resting one: the kernel's hand-back),
-across a user's own ``mj_step`` loop between ``step`` calls, with two
-adapters (two MjData) stepped in turn, and the hook's errors must still
-raise from ``mj_step``."""
+where Python between the steps reads what a native step left (the last
+forces, ``last_step_info``) or changes what the Python hook reads (a
+manager setting, its ``step``), with two adapters (two MjData) stepped in
+turn and in ``mujoco.rollout``'s threads; RK4 and a chained Python hook
+stay on the Python hook; the hook's errors must still raise from
+``mj_step``."""
 
 from __future__ import annotations
 
@@ -55,7 +60,7 @@ def _run(native: bool, monkeypatch) -> tuple:
     loop, 100 more. Returns (traces, records, warnings, native resting steps)."""
     with monkeypatch.context() as mp:
         if not native:
-            mp.setattr(_native, "enter", lambda *a: None)
+            mp.setattr(_native, "attach", lambda *a: None)
         model, data, pairs = _scene(N, False)
         ad = MujocoAdapter(model, data, pairs)
         out = []
@@ -90,11 +95,88 @@ def test_native_hook_is_the_python_hook_bit_for_bit(monkeypatch):
     assert warn_g == warn_w
 
 
-def test_native_hook_two_adapters_and_errors():
-    """Two MjData of one model, each with its adapter, stepped in turn (both installed): each
-    the same bit for bit as alone under the Python hook; a timestep changed after the adapter
-    was made still raises from the Python hook through the native one, which then leaves
-    MuJoCo's mjcb_passive as it was."""
+def _count(ad) -> int:
+    """Resting steps the native hook took for ``ad``."""
+    return int(ad._native.ti[NK.I_COUNT]) if ad._native is not None else 0
+
+
+def _user_loop(native: bool, how: str, monkeypatch, integrator: str = "Euler") -> tuple:
+    """The 9 spheres dropped and brought to rest by the user's own loop (``how``: "mj_step", the
+    viewer's "mj_step + mj_forward", "step(1)"), 700 steps; between steps: sphere 2's velocity
+    written at 450 (a jump), the last forces and last_step_info read every 7th step from 500, a
+    manager setting changed at 560 (settle_rate) and its ``step`` wrapped at 620 (the wrapper must
+    see every step after). Returns (traces, records, warnings, native steps, wrapper calls)."""
+    with monkeypatch.context() as mp:
+        if not native:
+            mp.setattr(_native, "attach", lambda *a: None)
+        model, data, pairs = _scene(N, False, integrator)
+        ad = MujocoAdapter(model, data, pairs)
+        mgr = ad.manager
+        out, calls = [], []
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with installed(ad):
+                for k in range(700):
+                    if k == 450:
+                        data.qvel[2 * 6 + 2] += 0.05
+                    if k == 560:
+                        mgr.settle_rate = 0.5 * mgr.settle_rate
+                    if k == 620:
+                        inner = mgr.step
+
+                        def wrapped(kin, inner=inner):
+                            calls.append(kin.t)
+                            return inner(kin)
+
+                        mgr.step = wrapped
+                    if how == "step(1)":
+                        ad.step(1)
+                    else:
+                        mujoco.mj_step(model, data)
+                        if how == "viewer":
+                            mujoco.mj_forward(model, data)
+                    if k >= 500 and k % 7 == 0:
+                        f = ad.last_forces
+                        out.append((data.qpos.copy(), data.qvel.copy(), data.qfrc_passive.copy(),
+                                    None if f is None else (f.force.copy(), np.asarray(f.pair).copy()),
+                                    dict(mgr.last_step_info)))
+                out.append(_trace(ad))
+        recs = [(r.cor_n, r.tau, r.x_max, r.F_max, tuple(r.outside_validity)) for r in ad.records]
+        return out, recs, [str(w.message) for w in caught], _count(ad), calls
+
+
+@pytest.mark.parametrize("how", ["mj_step", "viewer", "step(1)"])
+def test_users_own_loop_is_the_python_hook_bit_for_bit(monkeypatch, how):
+    want, recs_w, warn_w, none, calls_w = _user_loop(False, how, monkeypatch)
+    got, recs_g, warn_g, done, calls_g = _user_loop(True, how, monkeypatch)
+    assert none == 0
+    # at rest from ~step 450: most of steps 450-620 (until the wrapped step, which is the Python hook's)
+    assert done > 100, f"only {done} resting steps taken natively"
+    assert len(calls_w) == 700 - 620  # the wrapper sees every step after it was set...
+    assert calls_g == calls_w  # ...also where the native hook was armed when it was set
+    for i, (g, w) in enumerate(zip(got, want)):
+        assert _same(g, w), f"read {i}: differs"
+    assert recs_g == recs_w and len(recs_w) >= N
+    assert warn_g == warn_w
+
+
+def test_rk4_stays_on_the_python_hook():
+    """RK4's four hook calls a step: the native hook is never armed, and the results are the
+    Python hook's (the same loop, the native hook attached or not)."""
+    runs = []
+    for native in (False, True):
+        with pytest.MonkeyPatch.context() as mp:
+            runs.append(_user_loop(native, "mj_step", mp, "RK4"))
+    (want, recs_w, _, _, _), (got, recs_g, _, done, _) = runs
+    assert done == 0
+    assert all(_same(g, w) for g, w in zip(got, want)) and recs_g == recs_w
+
+
+def test_two_adapters_in_a_users_loop_and_errors():
+    """Two MjData of one model, each with its adapter, both installed, stepped in turn by the
+    user's own mj_step: each the same bit for bit as alone under the Python hook; a timestep
+    changed after the adapters were made still raises from the Python hook through the native
+    one; after the block MuJoCo's mjcb_passive is as it was (none) and the registry empty."""
     model, _, pairs = _scene(N, False)
     alone = []
     for _ in range(2):
@@ -106,19 +188,69 @@ def test_native_hook_two_adapters_and_errors():
     datas = [mujoco.MjData(model) for _ in range(2)]
     ads = [MujocoAdapter(model, d, pairs) for d in datas]
     with installed(ads[0]), installed(ads[1]):
-        for _ in range(10):
-            for ad in ads:
-                ad.step(50)
-        assert all(int(ad._native.ti[NK.I_COUNT]) > 0 for ad in ads)
+        for _ in range(500):
+            for d in datas:
+                mujoco.mj_step(model, d)
+        assert _native._STATE["slot"].value == _native._STATE["cfunc"].address  # (put there at the first arming)
+        assert all(_count(ad) > 100 for ad in ads)
         for d, (q, v) in zip(datas, alone):
             assert np.array_equal(d.qpos, q) and np.array_equal(d.qvel, v)
         model.opt.timestep = 2e-3
         with pytest.raises(RuntimeError, match="changed after the adapter"):
-            ads[0].step(2)  # (one step alone does not use the native hook)
+            mujoco.mj_step(model, datas[0])
         assert mujoco.get_mjcb_passive() is _dispatch
-        assert _native._STATE["slot"].value == _native._REG[NK.R_FALLBACK]  # the bindings' trampoline again
-        assert not _native._REG[NK.R_SLOTS::3].any()
     assert mujoco.get_mjcb_passive() is None
+    assert _native._STATE["slot"].value is None  # the bindings' trampoline out with the Python hook
+    assert not _native._REG[NK.R_SLOTS::3].any() and not _native._OWNERS
+    assert all(type(ad) is MujocoAdapter and type(ad.manager) in _native._WATCHED for ad in ads)
+
+
+def test_a_chained_python_hook_keeps_the_python_hook():
+    """A Python mjcb_passive installed before the adapter's is chained by it on every call: the
+    native hook, which would skip it, is not used."""
+    model, data, pairs = _scene(N, False)
+    ad = MujocoAdapter(model, data, pairs)
+    seen = []
+    mujoco.set_mjcb_passive(lambda m, d: seen.append(d.time))
+    try:
+        with installed(ad):
+            for _ in range(600):
+                mujoco.mj_step(model, data)
+    finally:
+        mujoco.set_mjcb_passive(None)
+    assert _count(ad) == 0 and len(seen) == 600
+
+
+def test_rollout_threads_are_the_plain_loop_bit_for_bit():
+    """``mujoco.rollout`` steps two MjData in two threads, each with its adapter installed: the
+    resting steps run natively on the rollout's threads (no GIL), and every state equals the
+    plain mj_step loop from it under the Python hook."""
+    from mujoco import rollout
+
+    model, d0, pairs = _scene(N, False)
+    ref = MujocoAdapter(model, d0, pairs)
+    ref.step(450)  # come to rest
+    full = mujoco.mjtState.mjSTATE_FULLPHYSICS
+    s0 = np.zeros(mujoco.mj_stateSize(model, full))
+    mujoco.mj_getState(model, d0, s0, full)
+    S = np.repeat(s0[None], 4, 0)
+    S[:, 0] += np.arange(4) * 1e-3  # distinct start times: the same resting state
+    nstep = 150
+    ds = [mujoco.MjData(model) for _ in range(2)]
+    ads = [MujocoAdapter(model, d, pairs) for d in ds]
+    with installed(ads[0]), installed(ads[1]):
+        out, _ = rollout.rollout(model, ds, S, nstep=nstep)
+    assert sum(_count(ad) for ad in ads) > 200
+    d = mujoco.MjData(model)
+    plain = MujocoAdapter(model, d, pairs)
+    plain.fused = False
+    with installed(plain):
+        for k in range(S.shape[0]):
+            mujoco.mj_setState(model, d, S[k], full)
+            for j in range(nstep):
+                mujoco.mj_step(model, d)
+                mujoco.mj_getState(model, d, s0, full)
+                assert np.array_equal(out[k, j], s0), (k, j)
 
 
 def test_native_hook_loaded_before_first_use_in_a_fresh_process():

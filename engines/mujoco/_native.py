@@ -3,38 +3,67 @@
 After MuJoCo's step the Python hook's first operations run with the
 interpreter's caches cold (docs/benchmarks.md: ~25-45 us of Python and
 argument passing a step at N = 1,000 resting spheres, beside ~200 us of
-compiled work). While :meth:`engines.mujoco.MujocoAdapter.step` runs its
-loop of ``mj_step``, this module puts a numba ``cfunc`` in MuJoCo's raw
-``mjcb_passive`` pointer in front of the Python hook: it calls
+compiled work). While the adapter's hook is installed, this module puts a
+numba ``cfunc`` in MuJoCo's raw ``mjcb_passive`` pointer in front of the
+Python hook: it calls
 :func:`engines.mujoco._native_kernel.native_passive`, which does the step
 tracker's test and the resting step in compiled code
 (:mod:`engines.mujoco._resting`: the same compiled function on the same
 arrays, so the same results bit for bit, tests/test_native_passive.py), and
 hands every other call to the Python hook through the bindings' own
 trampoline (the C function the bindings put in ``mjcb_passive`` for the
-installed Python hook: its exceptions propagate from ``mj_step`` as before,
-and ``mujoco.get_mjcb_passive()`` still returns the Python hook).
+installed Python hook, which takes the GIL: its exceptions propagate from
+``mj_step`` as before, and ``mujoco.get_mjcb_passive()`` still returns the
+Python hook).
 
 What the Python hook would have left on the adapter, the tracker and the
 manager after a step done natively (the step's ContactForces, the
 kinematics' time, ``last_step_info``, the tracker's start time) is written
-by :func:`sync` when Python next looks: at the next call of the Python hook
-and when ``step`` returns (or raises). A call the native hook hands over
-after it began (the state jumped, or the kernel found the step not a
-resting one) is resumed by the Python hook from there (:meth:`Native.passive`).
+by :meth:`Native.sync` when Python next looks: at the next call of the
+Python hook, when the adapter or its manager is read (below) and when the
+hook is uninstalled. A call the native hook hands over after it began (the
+state jumped, or the kernel found the step not a resting one) is resumed by
+the Python hook from there (:meth:`Native.passive`).
 
-When it is used: only inside ``MujocoAdapter.step(n)`` for n > 1 called from
-the main thread (one step alone: its set-up and hand-over cost about what it
-saves; no user code runs
-between its steps, so the conditions the Python hook checks each step,
-:func:`engines.mujoco._resting.eligible`, and the scalars it passes cannot
-change behind the native hook's back), for an adapter whose resting step is
-compiled (``_fused_static``), with no Python hook chained before the
-adapter's, no MSF sensors, a semi-implicit integrator, and the MjData and
-MjModel fields it reads found at verified offsets (:func:`_offsets`). The
-entry is armed again by the Python hook after each call it handled. A
-user's own ``mj_step`` loop, ``mujoco.rollout`` and the other MjData of a
-process run through the Python hook as before.
+When it is used: whenever the adapter's hook is installed (:func:`attach`,
+called by :func:`engines.mujoco.installed`, which ``MujocoAdapter.step``
+also enters), so a user's own ``mj_step`` loop, ``step(1)``, the viewer's
+loop and a gymnasium env's steps take their resting steps natively as
+``step(n)`` does; for an adapter whose resting step is compiled
+(``_fused_static``), with no Python hook chained before the adapter's, no
+MSF sensors, a semi-implicit integrator (RK4: the Python hook, every step)
+and the MjData and MjModel fields it reads found at verified offsets
+(:func:`_offsets`). The entry is armed by the Python hook after a call
+whose step was a resting one done in full (``MujocoAdapter._rested``: a
+scene in motion, such as the jet, stays on the Python hook with no added
+cost but the cfunc's look-up) and when the conditions it checks each step
+hold (:meth:`Native.arm`, :func:`engines.mujoco._resting.eligible`).
+
+Python between the steps (a user's loop): what the Python hook reads each
+step from the adapter and its manager (``fused``, ``set_mode``'s pairs,
+the manager's ``step``, ``settled_path``, ``settle_rate``, ``dt``, its law
+tables, ...) must not change behind the native hook's back, and what a
+native step leaves must be there when Python reads it. While the entry is
+armed the adapter and its manager are *watched*: their
+class is swapped for a subclass (:func:`_watched_class`, the same name and
+methods) whose attribute read first writes what the native steps left
+(:meth:`Native.catch_up`) and whose attribute write or delete hands the
+next step to the Python hook (:meth:`Native.release`: disarmed, which the
+Python hook arms again after its step). The swap is undone before the
+Python hook runs, so the hook's own work pays nothing for it. Arrays
+written in place (``manager.settled[...] = ...``) are read by the native
+step as by the Python hook (the same arrays). ``MujocoAdapter.step`` reads
+and counts through the adapter's ``__dict__`` (nothing a native step
+leaves stale), so a loop of ``step(1)`` stays native. MuJoCo's own state (a
+qpos, qvel or time written, ``mj_resetData``, ``mj_forward`` between
+steps, another timestep or integrator) is checked natively each call and
+handed to the Python hook.
+
+Threads: the native step needs no GIL; an MjData is stepped by one thread
+at a time (``mujoco.rollout``'s threads each step their own MjData), and
+every adapter has its own tables, so calls on different MjData do not
+share anything the native step writes. At most :data:`NK.R_MAX` adapters
+use it at once (the next ones: the Python hook).
 """
 
 from __future__ import annotations
@@ -43,7 +72,6 @@ import ctypes
 import glob
 import os
 import struct
-import threading
 
 import mujoco
 import numpy as np
@@ -53,7 +81,7 @@ from engines.mujoco._stepping import JUMP_VTOL
 
 #: the per-process registry the cfunc reads (engines.mujoco._native_kernel.REGISTRY)
 _REG = NK.REGISTRY
-_STATE: dict = {}  # "lib", "slot" (the raw mjcb_passive pointer), "cfunc", "offsets", "unavailable"
+_STATE: dict = {}  # "lib", "slot" (the raw mjcb_passive pointer), "cfunc", "offsets", "unavailable", "dispatch"
 _CODE = {np.dtype(np.float64): "f", np.dtype(np.int64): "i", np.dtype(np.bool_): "b", np.dtype(np.int8): "c"}
 _RK4 = int(mujoco.mjtIntegrator.mjINT_RK4)
 
@@ -140,17 +168,18 @@ def _cfunc():
 class Native:
     """One adapter's entry: the tables native_passive reads (``ti``, ``tf``: layouts in
     engines.mujoco._native_kernel), the arrays they point into (kept alive here), the two force
-    buffer sets, and whether ``MujocoAdapter.step`` is running (``scope``)."""
+    buffer sets, its registry slot (-1: not attached) and the objects watched."""
 
     def __init__(self, ad, offsets: tuple, integrate: int):
+        self.ad = ad
         self.ti = np.zeros(NK.TI_LEN, np.int64)
         self.tf = np.zeros(NK.TF_LEN, np.float64)
         self.ti[NK.I_MODEL] = ad.model._address
         self.ti[NK.I_OFF_TIME], self.ti[NK.I_OFF_TS], self.ti[NK.I_OFF_INT] = offsets
         self.ti[NK.I_INTEGRATE] = integrate
         self.tf[NK.F_VTOL] = JUMP_VTOL
-        self.scope = False
         self.slot = -1
+        self.watched: tuple = ()
         self._cached = None  # the _resting._args list the tables were made from
         k = ad._gi.shape[0]
         self._sets = [(np.empty((k, 3)), np.empty((k, 3)), np.empty(k, np.int64)) for _ in range(2)]
@@ -193,14 +222,18 @@ class Native:
         return True
 
     def arm(self, ad) -> None:
-        """Arm the entry when the adapter's next step may be done natively (module docstring);
-        called by the Python hook after each call it handled inside ``step``, and by :func:`enter`."""
+        """Arm the entry when the adapter's next step may be done natively (module docstring):
+        attached, its last step a resting one done in full (``ad._rested``) and the Python hook's
+        conditions met; called by the Python hook after each call it handled and by :func:`attach`.
+        Puts the native hook back in mjcb_passive when the adapters' Python hook is installed again
+        without it (``mujoco.set_mjcb_passive`` of the same hook, as ``_replayed_offset`` does)."""
         from engines.mujoco import _resting
 
         tr, mgr = ad._tracker, ad.manager
         a = ad._rest_args
-        ok = (a is not None and a[0] is mgr._kcodes and a[1] is mgr._kLC and tr.t0 is not None and tr.stage == 0
-              and not tr._taken and ad.fused and ad._known is None and not ad._sensors and ad._native_result is None
+        ok = (self.slot >= 0 and ad._rested and a is not None and a[0] is mgr._kcodes and a[1] is mgr._kLC
+              and tr.t0 is not None and tr.stage == 0 and not tr._taken and ad.fused and ad._known is None
+              and not ad._sensors and ad._native_result is None and not ad._static_watch.size
               and _resting.eligible(ad))
         if ok and a[2] is not self._cached:
             ok = self._tables(ad, a[2])
@@ -214,6 +247,10 @@ class Native:
         ti[NK.I_TIMING] = bool(mgr.timing_correction)
         tf[NK.F_T0], tf[NK.F_DT], tf[NK.F_SETTLE_RATE] = tr.t0, float(mgr.dt), float(mgr.settle_rate)
         ti[NK.I_ARMED] = 1
+        slot_ptr, cf = _STATE["slot"], _STATE["cfunc"]
+        if slot_ptr.value != cf.address and mujoco.get_mjcb_passive() is _STATE["dispatch"]:
+            _REG[NK.R_FALLBACK] = slot_ptr.value  # the bindings' trampoline of the Python hook
+            slot_ptr.value = cf.address
 
     def sync(self, ad) -> str | None:
         """Write what the native calls since Python last looked leave on the adapter, the tracker
@@ -249,75 +286,181 @@ class Native:
         return None
 
     def passive(self, ad, model, data) -> None:
-        """The Python hook's call for this adapter: bring the Python state up to date (:meth:`sync`),
-        run the Python hook (from where the native one stopped), arm again inside ``step``."""
+        """The Python hook's call for this adapter: the adapter and manager no longer watched,
+        the Python state brought up to date (:meth:`sync`), the Python hook run (from where the
+        native one stopped), the entry armed again (and the objects watched outside ``step``)."""
+        self.unwatch()
+        self.ti[_ARMED] = 0
         kind = self.sync(ad)
         ad._passive(model, data, kind if kind is not None else ad._tracker.classify(data))
-        if self.scope:
+        if self.slot >= 0 and ad._rested:
             self.arm(ad)
+            if self.ti[_ARMED]:
+                self.watch()
+
+    # -- watching the adapter and its manager between steps (module docstring) --
+    def watch(self) -> None:
+        ad = self.ad
+        mgr = object.__getattribute__(ad, "manager")
+        objs = (ad, mgr)
+        for o in objs:
+            cls = type(o)
+            if cls not in _BASES:
+                w = _watched_class(cls)
+                if w is None:
+                    self.unwatch()
+                    self.ti[_ARMED] = 0  # a class that cannot be watched: the Python hook
+                    return
+                object.__setattr__(o, "__class__", w)
+            _OWNERS[id(o)] = self
+        self.watched = objs
+
+    def unwatch(self) -> None:
+        for o in self.watched:
+            base = _BASES.get(type(o))
+            if base is not None:
+                object.__setattr__(o, "__class__", base)
+            _OWNERS.pop(id(o), None)
+        self.watched = ()
+
+    def catch_up(self) -> None:
+        """A watched object is read: write what the native steps left, watch again."""
+        self.unwatch()
+        self.sync(self.ad)
+        if self.ti[_ARMED]:
+            self.watch()
+
+    def release(self) -> None:
+        """A watched object is written: no longer watched, the next step the Python hook's."""
+        self.unwatch()
+        self.ti[_ARMED] = 0
+        if self.ti[_RESUME] == NK.RESUME_NONE:  # (a call handed over is resumed by the Python hook)
+            self.sync(self.ad)
+
+
+_ARMED, _DIRTY, _RESUME = NK.I_ARMED, NK.I_TRACK_DIRTY, NK.I_RESUME
+_OWNERS: dict = {}  # id(watched object) -> its Native
+_BASES: dict = {}  # watched class -> the class it watches
+_WATCHED: dict = {}  # class -> its watched subclass (None: cannot be watched)
+
+
+#: attributes whose value no native step leaves stale, read without bringing the rest up to date (a
+#: loop of ``adapter.step(1)`` and its geom check, ``adapter.data``)
+_FRESH = frozenset({"step", "data", "model", "timestep", "steps", "_check_geoms", "_geom_shape", "_geom_ids",
+                    "_geom_shape0"})
+
+
+def _get(obj, name):
+    nat = _OWNERS.get(id(obj))
+    if nat is not None and nat.ti[_DIRTY] and not nat.ti[_RESUME] and name not in _FRESH:
+        nat.catch_up()
+    return object.__getattribute__(obj, name)
+
+
+def _set(obj, name, value):
+    _let_go(obj)
+    setattr(obj, name, value)
+
+
+def _del(obj, name):
+    _let_go(obj)
+    delattr(obj, name)
+
+
+def _reduce_ex(obj, protocol):
+    _let_go(obj)  # (copied or pickled as its own class: the watched one is not found by name)
+    return obj.__reduce_ex__(protocol)
+
+
+def _let_go(obj) -> None:
+    nat = _OWNERS.get(id(obj))
+    if nat is not None:
+        nat.release()
+    base = _BASES.get(type(obj))
+    if base is not None:  # (not expected: a watched object whose entry let go of it)
+        object.__setattr__(obj, "__class__", base)
+
+
+def _watched_class(cls):
+    """The subclass of ``cls`` that watches its instances (module docstring): the same name,
+    module and methods, its attribute access through :func:`_get`, :func:`_set`, :func:`_del`.
+    None when ``cls`` reads or writes its attributes itself (a ``__getattribute__``,
+    ``__setattr__`` or ``__delattr__`` of its own) or its instances have no ``__dict__`` or no weak
+    references (the subclass would add them: another layout, which ``__class__`` cannot take)."""
+    if cls in _WATCHED:
+        return _WATCHED[cls]
+    own = any(getattr(cls, n) is not getattr(object, n) for n in ("__getattribute__", "__setattr__", "__delattr__"))
+    w = None
+    if not own and cls.__dictoffset__ and cls.__weakrefoffset__:  # (the subclass adds no slot: the same layout)
+        ns = {"__getattribute__": _get, "__setattr__": _set, "__delattr__": _del, "__reduce_ex__": _reduce_ex,
+              "__module__": cls.__module__,
+              "__qualname__": cls.__qualname__, "__doc__": cls.__doc__}
+        w = type(cls)(cls.__name__, (cls,), ns)
+        _BASES[w] = cls
+    _WATCHED[cls] = w
+    return w
 
 
 def _usable(ad) -> bool:
-    return bool(ad.compiled and ad._fused_static and ad.fused and ad._known is None and not ad._sensors)
+    return bool(ad.compiled and ad._fused_static and ad._known is None and not ad._sensors)
 
 
-def enter(ad, dispatch, previous: list) -> Native | None:
-    """Start the native hook for ``ad`` (installed, inside its ``step``); None when it cannot be used
-    (module docstring). dispatch: the adapters' Python mjcb_passive (engines.mujoco.adapter._dispatch),
-    which must be the one installed; previous: the Python hook it chains (none allowed: the native
-    hook would skip it). Pair with :func:`leave`."""
-    if (not _usable(ad) or (previous and previous[0] is not None) or mujoco.get_mjcb_passive() is not dispatch
-            or threading.current_thread() is not threading.main_thread()):  # (the registry is not locked)
-        return None
+def attach(ad, dispatch, previous: list) -> None:
+    """Start the native hook for ``ad`` (called by ``installed`` once the adapters' Python hook
+    ``dispatch`` is in mjcb_passive); nothing when it cannot be used (module docstring).
+    previous: the Python hook ``dispatch`` chains (none allowed: the native hook would skip it).
+    Pair with :func:`detach`."""
+    if not _usable(ad) or (previous and previous[0] is not None) or mujoco.get_mjcb_passive() is not dispatch:
+        return
     nat = ad._native
-    if nat is not None and nat.slot >= 0:  # a step inside this adapter's step (from a callback): already entered
-        return None
+    if nat is not None and nat.slot >= 0:
+        return
     if nat is None:
         if _STATE.get("unavailable"):
-            return None
+            return
         lib = _library()
         offsets = _offsets(ad.model, ad.data) if lib is not None else None
         if offsets is None:
             _STATE["unavailable"] = True
-            return None
+            return
         integrate = ctypes.cast(lib[0].mj_integratePos, ctypes.c_void_p).value
         nat = ad._native = Native(ad, offsets, integrate)
-    slot_ptr = _STATE["slot"]
-    cf = _cfunc()
+    _STATE["dispatch"] = dispatch
+    _cfunc()
     free = [s for s in range(NK.R_MAX) if _REG[NK.R_SLOTS + 3 * s] == 0]
     if not free:
-        return None
+        return
     s = free[0]
     _REG[NK.R_SLOTS + 3 * s + 1] = nat.ti.ctypes.data
     _REG[NK.R_SLOTS + 3 * s + 2] = nat.tf.ctypes.data
     _REG[NK.R_SLOTS + 3 * s] = ad.data._address
     _REG[NK.R_NSLOTS] = max(int(_REG[NK.R_NSLOTS]), s + 1)
     nat.slot = s
-    if slot_ptr.value != cf.address:  # the bindings' trampoline of the Python hook: the fallback
-        _REG[NK.R_FALLBACK] = slot_ptr.value
-        slot_ptr.value = cf.address
-    nat.scope = True
-    nat.arm(ad)
-    return nat
+    nat.arm(ad)  # (puts the native hook in mjcb_passive)
+    if nat.ti[_ARMED]:
+        nat.watch()
 
 
-def leave(ad, nat: Native) -> None:
-    """End :func:`enter`: disarm, unregister, put the bindings' trampoline back in mjcb_passive when
-    no adapter uses the native hook any more, and bring the Python state up to date."""
-    nat.scope = False
-    nat.ti[NK.I_ARMED] = 0
+def detach(ad) -> None:
+    """End :func:`attach`: no longer watched, disarmed, the Python state brought up to date,
+    unregistered, and the bindings' trampoline back in mjcb_passive when no adapter uses the
+    native hook any more."""
+    nat = object.__getattribute__(ad, "_native")
+    if nat is None or nat.slot < 0:
+        return
+    nat.unwatch()
+    nat.ti[_ARMED] = 0
     # a call handed over is resumed by the Python hook within the same mj_step; one still pending here
     # means mj_step raised before the hook ran: the step was not completed, nothing is to resume
-    nat.ti[NK.I_RESUME] = NK.RESUME_NONE
+    nat.ti[_RESUME] = NK.RESUME_NONE
     ad._native_result = None
-    s, nat.slot = nat.slot, -1
-    if s >= 0:
-        _REG[NK.R_SLOTS + 3 * s] = 0
-        _REG[NK.R_SLOTS + 3 * s + 1] = 0
-        _REG[NK.R_SLOTS + 3 * s + 2] = 0
-        if not _REG[NK.R_SLOTS::3].any():
-            _REG[NK.R_NSLOTS] = 0
-            slot_ptr = _STATE["slot"]
-            if slot_ptr.value == _STATE["cfunc"].address:
-                slot_ptr.value = int(_REG[NK.R_FALLBACK])
     nat.sync(ad)
+    s, nat.slot = nat.slot, -1
+    _REG[NK.R_SLOTS + 3 * s] = 0
+    _REG[NK.R_SLOTS + 3 * s + 1] = 0
+    _REG[NK.R_SLOTS + 3 * s + 2] = 0
+    if not _REG[NK.R_SLOTS::3].any():
+        _REG[NK.R_NSLOTS] = 0
+        slot_ptr = _STATE["slot"]
+        if slot_ptr.value == _STATE["cfunc"].address:
+            slot_ptr.value = int(_REG[NK.R_FALLBACK])

@@ -1,7 +1,7 @@
 """The compiled body of the MuJoCo adapter's native ``mjcb_passive`` (issue 10).
 
 :mod:`engines.mujoco._native` installs a numba ``cfunc`` as MuJoCo's raw
-``mjcb_passive`` while :meth:`engines.mujoco.MujocoAdapter.step` runs; the
+``mjcb_passive`` while the adapter's hook is installed; the
 cfunc calls :func:`native_passive`, which for a registered MjData does what
 the Python hook does for a resting step, with no Python in between:
 

@@ -188,6 +188,7 @@ def finish(ad, cached: list, force, point, pair, n: int, m: int, t0: float) -> N
     ad._apply = []
     ad._apply_couple = None
     ad._apply_fast = todo
+    ad._rested = True  # (engines.mujoco._native arms after such a step)
 
 
 def _info(mgr, ints, n: int) -> None:

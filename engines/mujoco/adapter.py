@@ -256,14 +256,17 @@ def _mujoco_contact_on(model: mujoco.MjModel, g1: int, g2: int, excluded: set | 
     return "contype/conaffinity match and no <contact><exclude> between the bodies"
 
 
+#: both disable bits that make MuJoCo skip mj_passive (check_passive_runs)
+_NO_PASSIVE = int(mujoco.mjtDisableBit.mjDSBL_SPRING) | int(mujoco.mjtDisableBit.mjDSBL_DAMPER)
+
+
 def check_passive_runs(model: mujoco.MjModel) -> None:
     """ValueError if MuJoCo would never call mjcb_passive, where the MSF force
     enters: with both springs and dampers disabled (``<flag spring="disable"
     damper="disable"/>``) mj_passive returns before its callback (MuJoCo 4.0
     src/engine/engine_passive.c, mj_passive), so the MSF pairs would have no
     force at all (a rubber ball fell through its floor, no record, no word)."""
-    off = mujoco.mjtDisableBit
-    if (model.opt.disableflags & off.mjDSBL_SPRING) and (model.opt.disableflags & off.mjDSBL_DAMPER):
+    if model.opt.disableflags & _NO_PASSIVE == _NO_PASSIVE:
         raise ValueError(
             "model.opt.disableflags disables both spring and damper (<flag spring=\"disable\" damper=\"disable\"/>): "
             "MuJoCo then skips mj_passive and its mjcb_passive, where the MSF force enters, so the MSF pairs would "
@@ -739,6 +742,10 @@ class MujocoAdapter(EngineAdapter):
         #: the native mjcb_passive's entry of this adapter (engines.mujoco._native; made by the first step())
         self._native = None
         self._native_result = None  # the resting kernel's results of a call the native hook began
+        self._rested = False  # the last step computed was a resting one done in full (_resting.finish)
+        # (mjNWARNING,) a view of MjData's warning counters (one attribute per step through the
+        # MjWarningStat wrapper costs ~1-3 us): step() reads mjWARN_BADQACC's
+        self._warning_counts = data.warning.number
         self._all_msf = True  # every pair on MSF (set_mode)
         self._last_kin = None  # the kinematics of the last step (_compute, _compute_rest, _resting.step)
         for i, sb in self._sphere_box.items():  # each sphere-box pair's own law, its curvature following the point
@@ -1076,29 +1083,22 @@ class MujocoAdapter(EngineAdapter):
         RuntimeError if MuJoCo reset a blown-up state."""
         if int(n) != n or n < 0:
             raise ValueError(f"n = {n!r} steps must be a whole number >= 0")
-        check_passive_runs(self.model)
+        # the adapter's fields through its __dict__: none is one a native step leaves stale, and a watched
+        # adapter's attribute reads and writes would go through engines.mujoco._native (module docstring)
+        st = object.__getattribute__(self, "__dict__")
+        if not st["_installed"]:
+            with installed(self):  # (resting steps in MuJoCo's raw mjcb_passive: engines.mujoco._native)
+                return self.step(n)
+        m, d = st["model"], st["data"]
+        check_passive_runs(m)
         self._check_geoms()
-        ctx = contextlib.nullcontext() if self._installed else installed(self)
-        bad = int(mujoco.mjtWarning.mjWARN_BADQACC)
-        counts = self.data.warning.number  # (mjNWARNING,) a view of MjData's counters (one attribute per step
-        m, d = self.model, self.data       # through the MjWarningStat wrapper costs ~1-3 us)
-        with ctx:
-            # resting steps in MuJoCo's raw mjcb_passive while this loop runs (engines.mujoco._native); not
-            # for one step, where its set-up and hand-over cost about what it saves (the jet's step(1) loop:
-            # 3-4 % fewer impacts per CPU-second with it, docs/benchmarks.md)
-            nat = _native.enter(self, _dispatch, _PREVIOUS) if n > 1 else None
-            try:
-                for _ in range(int(n)):
-                    resets = counts.item(bad)
-                    mujoco.mj_step(m, d)
-                    self.steps += 1
-                    if counts.item(bad) != resets:
-                        if nat is not None:
-                            nat.sync(self)
-                        self._bad_acceleration()
-            finally:
-                if nat is not None:
-                    _native.leave(self, nat)
+        counts = st["_warning_counts"]
+        for _ in range(int(n)):
+            resets = counts.item(_BADQACC)
+            mujoco.mj_step(m, d)
+            st["steps"] += 1
+            if counts.item(_BADQACC) != resets:
+                self._bad_acceleration()
 
     def _bad_acceleration(self) -> None:
         """MuJoCo flagged a NaN, inf or |qacc| > mjMAXVAL in the step just taken
@@ -1231,6 +1231,7 @@ class MujocoAdapter(EngineAdapter):
             if self._static_watch.size:
                 self._watch_static()
             self._in_hook = True
+            self._rested = False  # a resting step done in full (engines.mujoco._resting.finish) arms the native hook
             self._unheld = None  # the generalised force of the step's forces not held (set by _compute)
             self._step_start = self._start_state(data) if self.exact_offset else None
             try:
@@ -2606,6 +2607,7 @@ def _com_velocity_floats(model, data, body: int) -> tuple[float, float, float]:
 
 
 # -- the one global hook ------------------------------------------------------------
+_BADQACC = int(mujoco.mjtWarning.mjWARN_BADQACC)
 _REGISTRY: dict[int, MujocoAdapter] = {}
 _PREVIOUS: list = []  # the hook that was installed before ours (one entry while installed)
 _PREVIOUS_SENSOR: list = []  # the mjcb_sensor before ours (one entry while an adapter with MSF sensors is installed)
@@ -2729,8 +2731,11 @@ def installed(adapter: MujocoAdapter):
             prev = mujoco.get_mjcb_sensor()
             _PREVIOUS_SENSOR[:] = [prev]
             mujoco.set_mjcb_sensor(_dispatch_sensor)
+        # the native mjcb_passive for the resting steps of this MjData (engines.mujoco._native)
+        _native.attach(adapter, _dispatch, _PREVIOUS)
         yield adapter
     finally:
+        _native.detach(adapter)
         adapter._installed = False
         adapter._restore_modes()
         _REGISTRY.pop(key, None)
