@@ -2709,7 +2709,11 @@ def installed(adapter: MujocoAdapter):
     one leaves. Build models before entering: MuJoCo 4.0's Python bindings
     fail to compile a model (``MjModel.from_xml_string``: "Python exception
     raised") while any Python ``mjcb_passive`` is installed, since the
-    compiler calls the hook with a data object that has no Python wrapper."""
+    compiler calls the hook with a data object that has no Python wrapper.
+    While installed, the adapter's resting steps run in a native
+    ``mjcb_passive`` in front of the Python hook when it can take them
+    (:mod:`engines.mujoco._native`: whoever calls ``mj_step``, the same
+    results bit for bit)."""
     key = id(adapter.data)
     if key in _REGISTRY:
         raise ValueError("an adapter for this MjData is already installed")
