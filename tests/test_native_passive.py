@@ -103,7 +103,8 @@ def _count(ad) -> int:
 def _user_loop(native: bool, how: str, monkeypatch, integrator: str = "Euler") -> tuple:
     """The 9 spheres dropped and brought to rest by the user's own loop (``how``: "mj_step", the
     viewer's "mj_step + mj_forward", "step(1)"), 700 steps; between steps: sphere 2's velocity
-    written at 450 (a jump), the last forces and last_step_info read every 7th step from 500, a
+    written at 450 (a jump), the records popped and the last forces and last_step_info read every
+    7th step from 500, a
     manager setting changed at 560 (settle_rate) and its ``step`` wrapped at 620 (the wrapper must
     see every step after). Returns (traces, records, warnings, native steps, wrapper calls)."""
     with monkeypatch.context() as mp:
@@ -112,7 +113,7 @@ def _user_loop(native: bool, how: str, monkeypatch, integrator: str = "Euler") -
         model, data, pairs = _scene(N, False, integrator)
         ad = MujocoAdapter(model, data, pairs)
         mgr = ad.manager
-        out, calls = [], []
+        out, calls, popped = [], [], []
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
             with installed(ad):
@@ -136,12 +137,13 @@ def _user_loop(native: bool, how: str, monkeypatch, integrator: str = "Euler") -
                         if how == "viewer":
                             mujoco.mj_forward(model, data)
                     if k >= 500 and k % 7 == 0:
+                        popped += ad.pop_records()
                         f = ad.last_forces
                         out.append((data.qpos.copy(), data.qvel.copy(), data.qfrc_passive.copy(),
                                     None if f is None else (f.force.copy(), np.asarray(f.pair).copy()),
                                     dict(mgr.last_step_info)))
                 out.append(_trace(ad))
-        recs = [(r.cor_n, r.tau, r.x_max, r.F_max, tuple(r.outside_validity)) for r in ad.records]
+        recs = [(r.cor_n, r.tau, r.x_max, r.F_max, tuple(r.outside_validity)) for r in popped + ad.records]
         return out, recs, [str(w.message) for w in caught], _count(ad), calls
 
 

@@ -223,8 +223,9 @@ class Native:
 
     def arm(self, ad) -> None:
         """Arm the entry when the adapter's next step may be done natively (module docstring):
-        attached, its last step a resting one done in full (``ad._rested``) and the Python hook's
-        conditions met; called by the Python hook after each call it handled and by :func:`attach`.
+        attached, its last step a resting one done in full (``ad._rested``), no body welded to the
+        world in its pairs (the Python hook watches those for a move: ``_watch_static``) and the
+        Python hook's conditions met; called by the Python hook after each call it handled and by :func:`attach`.
         Puts the native hook back in mjcb_passive when the adapters' Python hook is installed again
         without it (``mujoco.set_mjcb_passive`` of the same hook, as ``_replayed_offset`` does)."""
         from engines.mujoco import _resting
@@ -357,7 +358,16 @@ def _get(obj, name):
     return object.__getattribute__(obj, name)
 
 
+#: attributes whose write changes nothing a native step reads: the records (``pop_records``), the
+#: adapter's step count, and the manager's list of records waiting for their probe set empty (which
+#: it is while armed: :func:`engines.mujoco._resting.eligible`)
+_HARMLESS = frozenset({"records", "steps"})
+
+
 def _set(obj, name, value):
+    if name in _HARMLESS or (name == "_pending" and not value):
+        object.__setattr__(obj, name, value)
+        return
     _let_go(obj)
     setattr(obj, name, value)
 
