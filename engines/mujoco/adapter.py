@@ -452,7 +452,7 @@ class _FreeGroup:
                     W_com=W_com, a_ext=a_ext[c])
         pos = np.full(len(last_v), -1)
         pos[idx[c]] = np.arange(c.size)
-        return {"rows": rows, "pos": pos, "p1": p1[c], "p2": p2[c], "p1_all": p1, "p2_all": p2}
+        return {"rows": rows, "pos": pos, "p1": p1[c], "p2": p2[c], "p1_all": p1, "p2_all": p2, "x_all": x}
 
     def _detect(self, d, c1):
         pl, sp = np.flatnonzero(self.plane), np.flatnonzero(~self.plane)
@@ -704,6 +704,8 @@ class MujocoAdapter(EngineAdapter):
         self._closed_pair = np.array([(p.fixed1 or simple[p.body1]) and (p.fixed2 or simple[p.body2])
                                       for p in self._pairs], dtype=bool)
         self._push = np.full(P, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
+        self._gaps = np.full(P, np.nan)  # every pair's x read in the last step [m] (push_reach's paths; NaN: not read)
+        self._pushed = False  # push_reach has run (the first step lists again with its own push: _first_push)
         # islands need a moving body in two pairs (or two slots of one pair); without one (N spheres on a plate,
         # the jet without particle-particle contacts) every contact is alone: no coupling, no push reach
         moving = keys[keys >= 0]
@@ -731,7 +733,7 @@ class MujocoAdapter(EngineAdapter):
         # difference (a force the contact did not see: a joint limit's, a user's qfrc_applied) still
         # takes the engine's gap.
         for q in self._pairs:
-            if q.fixed2 and not q.fixed1 and self._link_pairs[q.index]:
+            if not q.fixed1 and self._link_pairs[q.index]:
                 self.manager.own_gap[q.index] = True
         self._required = np.zeros(len(self._pairs), bool)  # _compute_compiled's scratch
         self._fk_bufs = None  # the free group's kinematics arrays (_compute_compiled)
@@ -1878,10 +1880,17 @@ class MujocoAdapter(EngineAdapter):
         blocks = []
         W_fast = None
         if self._fast.index.size:
+            first = self._shared and not self._pushed
+            saved = self._have_last.copy() if first else None
             blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last, self._push,
                                         self._last_r, self._last_gap, *self._held_geometry(required))
+            if first and self._first_push(blk["rows"], self._fast.index, blk["x_all"]):
+                self._have_last[:] = saved  # listed again with the push of this step's own rows
+                blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last,
+                                            self._push, self._last_r, self._last_gap, *self._held_geometry(required))
             W_fast = blk
             self._p1[self._fast.index], self._p2[self._fast.index] = blk["p1_all"], blk["p2_all"]
+            self._gaps[self._fast.index] = blk["x_all"]
             blocks.append(blk["rows"])
         slow, points, jacs = self._slow_rows(required)
         self._keep_points(points)
@@ -1902,7 +1911,8 @@ class MujocoAdapter(EngineAdapter):
         self._last_kin, self._last_out = kin, out
         Qc = self._couples(out)
         if self._shared:
-            self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
+            self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR, self._gaps)
+            self._pushed = True
         self.last_forces = out if kin.pair.size else None
         pair = np.asarray(out.pair, dtype=int)
         force = np.asarray(out.force, dtype=float)
@@ -1954,17 +1964,40 @@ class MujocoAdapter(EngineAdapter):
             # the rows are this step's until the next _compute, which is all the manager and
             # contact_forces read them for)
             b = self._fk_buffers()
+            first = self._shared and not self._pushed
+            saved = self._have_last.copy() if first else None
             err, n = K.free_kinematics_into(
                 self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat, required,
                 self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push,
                 self._last_r, self._last_gap, *self._held_geometry(required), *b)
+            if first and err == K.ERR_NONE and self._first_push(self._fast_rows(n), self._fast.index, b[11][:, 0]):
+                self._have_last[:] = saved  # listed again with the push of this step's own rows
+                err, n = K.free_kinematics_into(
+                    self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat, required,
+                    self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push,
+                    self._last_r, self._last_gap, *self._held_geometry(required), *b)
             p1, p2 = b[9], b[10]
             if err != K.ERR_NONE:
                 self._detection_failed(err)
             fast = self._fast_rows(n)
             self._p1[self._fast_at], self._p2[self._fast_at] = p1, p2
+            if self._shared:
+                self._gaps[self._fast_at] = b[11][:, 0]  # every pair's detected x (the kernel's scratch)
         self._compute_rest(fast, p1, p2)
         return False
+
+    def _first_push(self, rows: dict, index, x_all) -> bool:
+        """In the first step (no last step's rows to take the push from: islands.push_reach) the
+        push of the free group's own candidate rows and its pairs' gaps x_all (in the order of
+        index); True when it reaches farther than the push the rows were listed with (they are
+        listed again: a strike in the very first step along a row of balls 0.1 mm apart was
+        otherwise found 0.4 mm deep a step later, the cradle at 18,000 times its energy)."""
+        self._gaps[index] = x_all
+        push = push_reach(self._keys, np.asarray(rows["pair"], np.int64), rows["x"], rows["v_rel"], self.timestep,
+                          CANDIDATE_FACTOR, self._gaps)
+        more = bool(np.any(push > self._push))
+        self._push = np.maximum(self._push, push)
+        return more
 
     def _fast_rows(self, n: int) -> dict:
         """The free group's n candidate rows in its kinematics buffers, as ContactKinematics fields."""
@@ -2019,7 +2052,8 @@ class MujocoAdapter(EngineAdapter):
         self._last_kin, self._last_out = kin, out
         Qc = self._couples(out)
         if self._shared:
-            self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
+            self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR, self._gaps)
+            self._pushed = True
         self.last_forces = out if kin.pair.size else None
         pair = np.asarray(out.pair, dtype=np.int64)
         force = np.asarray(out.force, dtype=float).reshape(-1, 3)
@@ -2209,6 +2243,12 @@ class MujocoAdapter(EngineAdapter):
         dq_known = self._known.change() if self._known is not None else None
         held = self.manager._held_force
         weld = self.model.body_weldid
+        first = self._shared and not self._pushed
+        late = []
+
+        def row(*a):
+            self._slow_row(*a, rows, points)
+
         for p in self._slow:
             if p.kind2 == "narrow":
                 x, n, point, p1, p2 = self._narrow_row(p)
@@ -2223,6 +2263,7 @@ class MujocoAdapter(EngineAdapter):
                 J -= self._jacobian(p.body2, p2, self._jac2)
             v_rel = J @ d.qvel
             i = p.index
+            self._gaps[i] = x
             jacs.append((i, J))
             if self._have_last[i]:
                 a_ext = (v_rel - self._last_v[i] - self._last_dv[i]) / dt
@@ -2237,20 +2278,21 @@ class MujocoAdapter(EngineAdapter):
             # closing_distance in Python floats (the same operations)
             reach = CANDIDATE_FACTOR * (max(-float(v_rel @ n), 0.0) * dt + 0.5 * max(-float(a_ext @ n), 0.0) * dt * dt)
             if x <= -(reach + self._push[i]) and not required[i]:
+                if first:
+                    late.append((p, i, x, n, point, p1, p2, J, v_rel, a_ext, reach))
                 continue
-            # W = J M^-1 J^T, W_com = J_c M^-1 J^T
-            MinvJT = np.zeros((3, m.nv))
-            self._solve_m(MinvJT, np.ascontiguousarray(J))
-            W = J @ MinvJT.T
-            if self._known is not None and not self.manager.active[i]:  # a possible onset (_check_damped_onsets)
-                self._damped_share[i] = self._known.damped_share(J, n)
-            Jc = self._jacobian(p.body1, d.xipos[p.body1], self._jac).copy()
-            if weld[p.body2]:
-                Jc -= self._jacobian(p.body2, d.xipos[p.body2], self._jac2)
-            v_com = Jc @ d.qvel
-            W_com = Jc @ MinvJT.T
-            rows.append((i, x, n, point, v_rel, v_com, W, W_com, a_ext))
-            points[i] = (p1, p2, J)
+            row(p, i, x, n, point, p1, p2, J, v_rel, a_ext)
+        if late and rows:
+            # the first step (no last step's rows to take the push from: islands.push_reach): the push
+            # of this step's own rows lists the pairs it reaches too (a strike in the very first step
+            # along a row of balls on slide joints 0.1 mm apart, otherwise found 0.4 mm deep a step later)
+            cols = list(zip(*rows))
+            push = push_reach(self._keys, np.array(cols[0], dtype=np.int64), np.array(cols[1], dtype=float),
+                              np.array(cols[4], dtype=float), dt, CANDIDATE_FACTOR, self._gaps)
+            self._push = np.maximum(self._push, push)
+            for p, i, x, n, point, p1, p2, J, v_rel, a_ext, reach in late:
+                if x > -(reach + self._push[i]):
+                    row(p, i, x, n, point, p1, p2, J, v_rel, a_ext)
         if self._narrow is not None:
             self._pose_lines(points)
         if not rows:
@@ -2261,6 +2303,25 @@ class MujocoAdapter(EngineAdapter):
                      v_rel=np.array(cols[4], dtype=float), v_com_rel=np.array(cols[5], dtype=float),
                      W=np.array(cols[6], dtype=float), W_com=np.array(cols[7], dtype=float),
                      a_ext=np.array(cols[8], dtype=float)), points, jacs)
+
+    def _slow_row(self, p, i, x, n, point, p1, p2, J, v_rel, a_ext, rows, points) -> None:
+        """A candidate row of slow pair p (index i) into rows, its points and Jacobian into points
+        (:meth:`_slow_rows`)."""
+        m, d = self.model, self.data
+        weld = self.model.body_weldid
+        # W = J M^-1 J^T, W_com = J_c M^-1 J^T
+        MinvJT = np.zeros((3, m.nv))
+        self._solve_m(MinvJT, np.ascontiguousarray(J))
+        W = J @ MinvJT.T
+        if self._known is not None and not self.manager.active[i]:  # a possible onset (_check_damped_onsets)
+            self._damped_share[i] = self._known.damped_share(J, n)
+        Jc = self._jacobian(p.body1, d.xipos[p.body1], self._jac).copy()
+        if weld[p.body2]:
+            Jc -= self._jacobian(p.body2, d.xipos[p.body2], self._jac2)
+        v_com = Jc @ d.qvel
+        W_com = Jc @ MinvJT.T
+        rows.append((i, x, n, point, v_rel, v_com, W, W_com, a_ext))
+        points[i] = (p1, p2, J)
 
     def _keep_points(self, points: dict) -> None:
         for i, (p1, p2, _J) in points.items():

@@ -86,7 +86,7 @@ def _add_free_W(W, k, rot, j, inv_m, inv_I, r):
 
 @njit(cache=True)
 def fast_rows(f, j1, j2, s1, r1, plane, s2, size2, com, rot, v, w, b_free, inv_m, inv_I,
-              last_v_rel, last_dv, have_last, last_a_ext, pt, required, grav, dt, factor, push,
+              last_v_rel, last_dv, have_last, last_a_ext, pt, required, grav, dt, factor, push, gaps,
               o_pair, o_x, o_n, o_pt, o_v, o_vc, o_W, o_Wc, o_a):
     """Candidate rows of the fast pairs f (F,) (pair indices, ascending) and
     the a_ext bookkeeping of all of them (the adapter's ``_fast_rows``).
@@ -97,7 +97,8 @@ def fast_rows(f, j1, j2, s1, r1, plane, s2, size2, com, rot, v, w, b_free, inv_m
     at s2. Bodies: com, rot, v, w (B, ...); b_free, inv_m, inv_I (B, 3).
     Per pair (P, ...), updated in place: last_v_rel, last_dv (zeroed),
     have_last, last_a_ext, pt. required (P,) bool; grav (3,) [m/s^2]; push
-    (P,) [m]: a pair's extra reach from its bodies' other contacts.
+    (P,) [m]: a pair's extra reach from its bodies' other contacts; gaps
+    (P,) [m]: every fast pair's x written (islands.push_reach's paths).
     Writes the candidates to o_* (rows 0..k-1, in the order of f) and returns
     (k, status, the first offending fast row or -1)."""
     k = 0
@@ -134,6 +135,7 @@ def fast_rows(f, j1, j2, s1, r1, plane, s2, size2, com, rot, v, w, b_free, inv_m
             for d in range(3):
                 nrm[d] /= dist
             x = R1 + R2 - dist
+        gaps[i] = x
         # the middle of the overlap (of the gap): engines._geometry.Detection.of_sphere; on a
         # plane, body 1's own point (its surface point at a gap, as MuJoCo's adapter), so that
         # the lever arm is R1 - max(x, 0)/2 at every x (the timing correction is removed at

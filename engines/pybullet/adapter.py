@@ -432,6 +432,8 @@ class PybulletAdapter(EngineAdapter):
         key = np.where(self._b_art, B + self._b_uid, key)
         self._keys = key[self._slot].astype(np.int64)
         self._push = np.full(n, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
+        self._gaps = np.full(n, np.nan)  # every pair's x read in the last step [m] (push_reach's paths; NaN: not read)
+        self._pushed = False  # push_reach has run (the first step lists again with its own push: _first_push)
         self._cur_bodies: _Bodies | None = None
         #: the loads the last step applied (pairs (k,), forces (k, 3) [N] on body 1 at points (k, 3) [m],
         #: couples (k, 3) [N m] or None, the bodies' state at the step start) or None: last_step_work
@@ -597,6 +599,13 @@ class PybulletAdapter(EngineAdapter):
         # at 1 ms, began deep; 0.69 mJ gained at rest, 15 records flagged)
         narrow = np.array([k >= 0 for k, _ in self._narrow_of], bool)
         self.manager.own_gap[narrow & self._b_free[self._slot[:, 0]] & self._b_fixed[self._slot[:, 1]]] = True
+        # two moving bodies of which one at least is a multibody's link (balls on slide or hinge joints,
+        # a cradle): the manager's gap too, as MuJoCo's links (engines.mujoco.adapter). The timing
+        # correction leaves the engine's gap ahead of the integrated one by dt |dv| / 2 (a cradle on slide
+        # joints at 1 ms, 1 mm gaps: the third ball found 0.47 mm deep at its onset, the cradle at 1,600
+        # times its energy); a larger difference (a joint limit's force) still takes the engine's gap
+        moving = ~self._b_fixed[self._slot]
+        self.manager.own_gap[moving.all(axis=1) & self._b_art[self._slot].any(axis=1)] = True
         self._slow = [i for i in range(len(self._bodies)) if not self._is_fast[i]]
         f = self._fast
         self._f_s1 = np.array([self._shapes[i][0].pos for i in f], float).reshape(-1, 3)
@@ -1855,6 +1864,7 @@ class PybulletAdapter(EngineAdapter):
         self._pt[f] = point
         reach = closing_distance(-np.einsum("ij,ij->i", v_rel, nrm), -np.einsum("ij,ij->i", a_ext, nrm), self._dt,
                                  CANDIDATE_FACTOR)
+        self._gaps[f] = x
         c = np.flatnonzero((x > -(reach + self._push[f])) | required[f])
         j1c, j2c = j1[c], j2[c]
         W = self._free_W(bodies, j1c, r1[c])
@@ -1864,6 +1874,17 @@ class PybulletAdapter(EngineAdapter):
         W_com = (self._b_inv_m[j1c] + self._b_inv_m[j2c])[:, None, None] * np.eye(3)
         return dict(pair=f[c], x=x[c], normal=nrm[c], point=point[c], v_rel=v_rel[c],
                     v_com_rel=bodies.v[j1c] - bodies.v[j2c], W=W, W_com=W_com, a_ext=a_ext[c])
+
+    def _first_push(self, rows: dict) -> bool:
+        """In the first step (no last step's rows to take the push from: islands.push_reach) the
+        push of the free pairs' own candidate rows and gaps; True when it reaches farther than the
+        push the rows were listed with (they are listed again: a strike in the very first step
+        along a row of balls 0.1 mm apart, otherwise found 0.4 mm deep a step later)."""
+        push = push_reach(self._keys, np.asarray(rows["pair"], np.int64), rows["x"], rows["v_rel"], self._dt,
+                          CANDIDATE_FACTOR, self._gaps)
+        more = bool(np.any(push > self._push))
+        self._push = np.maximum(self._push, push)
+        return more
 
     def _free_W(self, bodies: _Bodies, j, r):
         """1/m Id - [r]x I^-1 [r]x (k, 3, 3) of free bodies j at lever arms r (k, 3),
@@ -1883,7 +1904,7 @@ class PybulletAdapter(EngineAdapter):
             self._f64, self._f_j1, self._f_j2, self._f_s1, self._f_r1, self._f_plane, self._f_s2, self._f_size2,
             bodies.com, bodies.rot, bodies.v, bodies.w, self._b_free, self._b_inv_m, self._b_inv_I,
             self._last_v_rel, self._last_dv, self._have_last, self._last_a_ext, self._pt, required,
-            np.asarray(grav, float), self._dt, CANDIDATE_FACTOR, self._push, *out.values())
+            np.asarray(grav, float), self._dt, CANDIDATE_FACTOR, self._push, self._gaps, *out.values())
         if status == self._k.COINCIDENT:
             raise ValueError(f"pairs[{int(self._fast[q])}]: sphere-sphere: the centres coincide, the contact "
                              "normal is undefined")
@@ -1910,19 +1931,43 @@ class PybulletAdapter(EngineAdapter):
         blocks = []
         if self._fast.size:
             fast_rows = self._fast_rows_compiled if self.compiled else self._fast_rows
-            blocks.append(fast_rows(bodies, grav, required))
+            first = not self._pushed
+            saved = self._have_last.copy() if first else None
+            rows = fast_rows(bodies, grav, required)
+            if first and self._first_push(rows):  # the push of this step's own rows lists more pairs: again
+                self._have_last[:] = saved
+                rows = fast_rows(bodies, grav, required)
+            blocks.append(rows)
         cand = []
+        late = []  # the first step's pairs beyond the reach (_first_push)
+
+        def take(i, x, nrm, point, v_rel, v_com_rel, a_ext, poses):
+            if self._narrow_of[i][0] >= 0 and not self.manager.active[i]:
+                self._narrow_law(i, poses, point, nrm, x)
+            W, Wc = self._inverse_inertia(i, poses, point)
+            cand.append((i, x, nrm, point, v_rel, v_com_rel, W, Wc, a_ext))
+
         for i, x, nrm, point, v_rel, v_com_rel, a_ext, poses in self._kinematics(bodies, grav, required):
             closing = float(closing_distance(-(v_rel @ nrm), -(a_ext @ nrm), dt, CANDIDATE_FACTOR))
             if x > -(closing + self._push[i]) or required[i]:
-                if self._narrow_of[i][0] >= 0 and not self.manager.active[i]:
-                    self._narrow_law(i, poses, point, nrm, x)
-                W, Wc = self._inverse_inertia(i, poses, point)
-                cand.append((i, x, nrm, point, v_rel, v_com_rel, W, Wc, a_ext))
+                take(i, x, nrm, point, v_rel, v_com_rel, a_ext, poses)
+            elif not self._pushed:
+                late.append((closing, (i, x, nrm, point, v_rel, v_com_rel, a_ext, poses)))
             self._last_v_rel[i] = v_rel
             self._last_dv[i] = 0.0
             self._have_last[i] = True
             self._pt[i] = point
+            self._gaps[i] = x
+        if late and (cand or blocks):
+            # the first step: the push of this step's own rows lists the pairs it reaches too
+            # (_first_push; links on slide joints 0.1 mm apart struck in the first step)
+            rows = [dict(pair=np.array([c[0] for c in cand], np.int64), x=np.array([c[1] for c in cand], float),
+                         v_rel=np.array([c[4] for c in cand], float).reshape(-1, 3))] + blocks
+            self._first_push({key: np.concatenate([np.asarray(r[key]) for r in rows]) for key in ("pair", "x", "v_rel")})
+            for closing, args in late:
+                if args[1] > -(closing + self._push[args[0]]):
+                    take(*args)
+            cand.sort(key=lambda c: c[0])  # in pair order
         shapes = dict(pair=(), x=(), normal=(3,), point=(3,), v_rel=(3,), v_com_rel=(3,), W=(3, 3), W_com=(3, 3),
                       a_ext=(3,))
         if cand or not blocks:
@@ -1955,7 +2000,8 @@ class PybulletAdapter(EngineAdapter):
         self._last_kin, self._last_out = kin, out
         if self._kin is not None:
             self._drive_work(out)
-        self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR)
+        self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR, self._gaps)
+        self._pushed = True
         pair = np.asarray(out.pair, int)
         force = np.asarray(out.force, float)
         hit = np.flatnonzero(np.any(force != 0.0, axis=1))
