@@ -139,6 +139,9 @@ class KinematicBodies:
         self.work = np.zeros(self.sides.shape[0])
         self.placements = 0  #: pose changes taken as placements (module docstring)
         self.moving = False  # any driven body with a non-zero twist this step
+        self.was_moving = False  # ... in the last step
+        self.v_prev = np.zeros((nb, 3))  # the last step's twist
+        self.w_prev = np.zeros((nb, 3))
         self.uids = None  # pybullet: the bases' unique ids
         self.credited = False  # any work credited yet (work_on is zero until then)
 
@@ -169,6 +172,8 @@ class KinematicBodies:
         # docstring: exact for a constant acceleration), else the last one's; a pose left as it was is at rest
         moved = np.any(pos != self.pos, axis=1) | np.any(quat != self.quat, axis=1)
         two = (self.trust & ~still & moved)[:, None]
+        self.v_prev, self.w_prev = self.v.copy(), self.w.copy()  # the last step's (engines.mujoco: a_ext)
+        self.was_moving = self.moving
         self.v = np.where(still[:, None], 0.0, np.where(two, 2.0 * v - self.v_implied, v))
         self.w = np.where(still[:, None], 0.0, np.where(two, 2.0 * w - self.w_implied, w))
         self.trust = ~still

@@ -279,15 +279,9 @@ def test_mujoco_static_body_moved_is_warned():
 
 #: A driven paddle's strike against the same strike seen from the paddle (the ball thrown at the
 #: paddle at rest): the contact sees the same relative motion, so the records and the relative
-#: exit velocities agree to the sub-cycle's round-off (measured 1.1e-10 on cor_t, 3e-10 rad/s).
+#: exit velocities agree to the sub-cycle's round-off (measured 1.1e-10 on cor_t, 3e-10 rad/s; the
+#: sphere paddle 3.2e-9 rad/s on spin_out).
 GALILEO_ATOL = 1e-8
-
-
-#: MuJoCo's sphere paddle in the Galilean check: its first-touch sweep (engines._sweep, in the compiled
-#: kernel) does not see the driven velocity, so the record's normal differs (cor_n -0.33 %, cor_t +3.4 %
-#: against the thrown ball's, docs/engines.md) while the ball's exit velocity relative to the paddle
-#: agrees within 1.4e-4 m/s (measured); bound 3e-4 m/s.
-SPHERE_SWEEP_ATOL = 3e-4
 
 
 @pytest.mark.parametrize("shape", ["box", "sphere"])
@@ -296,7 +290,9 @@ def test_mujoco_oblique_paddle_is_the_ball_thrown_at_it(shape):
     the ball thrown at (-1, -0.5) m/s onto the paddle at rest (Galilean invariance): the tangential
     slip of the driven body enters the contact as the ball's own would. Both at 1 ms (the engine's
     oblique result against the reference solver is another matter: -0.2 % on cor_t here). The
-    sphere paddle's record is not held to it (SPHERE_SWEEP_ATOL)."""
+    sphere paddle too: the free spheres' first-touch sweep (engines._sweep, in the compiled kernel)
+    reads the driven twist from cvel (MujocoAdapter._drive_cvel; before, the record's normal was the
+    step start's: cor_n -0.33 %, cor_t +3.4 % off the thrown ball's)."""
     _skip("mujoco")
     import mujoco
 
@@ -318,23 +314,19 @@ def test_mujoco_oblique_paddle_is_the_ball_thrown_at_it(shape):
     ad = MujocoAdapter(m, d, [PairSpec("ball", "pad", law)])
     ad.step(60)
     (thrown,), (driven,) = ad.pop_records(), drv["records"]
-    tol = GALILEO_ATOL if shape == "box" else SPHERE_SWEEP_ATOL
-    if shape == "box":
-        for key in ("cor_n", "cor_t", "spin_out", "x_max", "F_max"):
-            assert getattr(driven, key) == pytest.approx(getattr(thrown, key), rel=tol, abs=tol), key
+    tol = GALILEO_ATOL
+    for key in ("cor_n", "cor_t", "spin_out", "x_max", "F_max"):
+        assert getattr(driven, key) == pytest.approx(getattr(thrown, key), rel=tol, abs=tol), key
     assert drv["v_out"] - 1.0 == pytest.approx(d.qvel[0], abs=tol)  # relative to the paddle
     assert drv["v_y"] - 0.5 == pytest.approx(d.qvel[1], abs=tol)
-    if shape == "box":
-        assert drv["spin"][2] == pytest.approx(d.qvel[5], abs=tol)
+    assert drv["spin"][2] == pytest.approx(d.qvel[5], abs=tol)
 
 
 @pytest.mark.parametrize("shape", ["box", "sphere"])
 def test_pybullet_oblique_paddle_is_the_ball_thrown_at_it(shape):
     """The Galilean check of test_mujoco_oblique_paddle_is_the_ball_thrown_at_it in pybullet: the
     mass-0 paddle moved at (1, 0.5) m/s against the ball thrown at (-1, -0.5) m/s at it at rest;
-    also with the sphere paddle (measured equal to 1e-15: pybullet's sphere pair takes the same
-    normal either way, where MuJoCo's first-touch sweep does not see the driven velocity,
-    docs/engines.md)."""
+    also with the sphere paddle (measured equal to 1e-15)."""
     _skip("pybullet")
     import pybullet as pb
 

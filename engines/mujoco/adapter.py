@@ -766,6 +766,17 @@ class MujocoAdapter(EngineAdapter):
         self._kin = self._driven_bodies()
         if self._kin is not None:
             self._fused_static = False  # the resting step in one call reads no driven body's motion
+            # the free group's driven sides (body 2, fixed): their twist is put in cvel for the group's kernel
+            # (_drive_cvel), which then reads the contact as the engine's velocities would give it, the
+            # first-touch sweep of two spheres (engines._sweep) included
+            fb = sorted({int(p.body2) for p in self._pairs if self._is_fast[p.index] and self._kin.sides[p.index, 1] >= 0})
+            self._kin_fast_b = np.array(fb, dtype=np.int64)
+            self._kin_fast_j = np.array([self._kin.sides[next(p.index for p in self._pairs if p.body2 == b
+                                                               and self._is_fast[p.index]), 1] for b in fb],
+                                        dtype=np.int64)
+            self._kin_fast_rows = np.array([self._is_fast[p.index] and self._kin.sides[p.index, 1] >= 0
+                                            for p in self._pairs], dtype=bool)
+            self._kin_had_last = np.zeros(len(self._pairs), bool)
         self._kin_declared: set[int] = set()  # driven bodies placed by the user since the last step (placed)
         self._kin_push = None  # the candidate reach with the driven bodies' motion, this step's (_drive)
         #: bodies welded to the world (not the world itself, no mocap) in the pairs: taken as static; one the
@@ -1042,6 +1053,22 @@ class MujocoAdapter(EngineAdapter):
                           "then moves at the velocity of its pose change (docs/engines.md, \"Bodies you drive "
                           "yourself\"). Warned once per body", RuntimeWarning, stacklevel=4)
 
+    def _drive_cvel(self):
+        """Put the driven twist of the free group's driven bodies in ``data.cvel`` (MuJoCo's
+        com-based [omega, v at the root's subtree com]) for the group's kernel; return the rows
+        it replaced (None: nothing to put). Restored right after the kernel, inside the hook:
+        MuJoCo never sees it."""
+        kin, d = self._kin, self.data
+        self._kin_had_last[:] = self._have_last
+        if not kin.moving or not self._kin_fast_b.size:
+            return None
+        b, j = self._kin_fast_b, self._kin_fast_j
+        saved = d.cvel[b].copy()
+        com = d.subtree_com[self.model.body_rootid[b]]
+        d.cvel[b, :3] = kin.w[j]
+        d.cvel[b, 3:] = kin.velocity_at(j, com)
+        return saved
+
     def _drive_work(self) -> None:
         """The work the driven bodies did on their partners in the step (the islands' energy probe)."""
         out, kin = self.last_forces, self._kin
@@ -1060,8 +1087,9 @@ class MujocoAdapter(EngineAdapter):
         if drv is not None and drv.moving and kin.pair.size and not getattr(kin, "driven", False):
             kin.driven = True  # once per kinematics (a second manager.step on them must not add it again)
             pair = np.asarray(kin.pair, dtype=np.int64)
-            sel = np.flatnonzero(np.any(drv.sides[pair] >= 0, axis=1))
-            if sel.size:
+            fast = self._kin_fast_rows[pair]
+            sel = np.flatnonzero(np.any(drv.sides[pair] >= 0, axis=1) & ~fast)
+            if sel.size:  # read through Jacobians: the driven velocity added here
                 q = pair[sel]
                 d = self.data
                 b1 = np.array([self._pairs[i].body1 for i in q], dtype=np.int64)
@@ -1071,6 +1099,19 @@ class MujocoAdapter(EngineAdapter):
                 kin.v_rel = np.array(kin.v_rel, dtype=float)
                 kin.v_com_rel = np.array(kin.v_com_rel, dtype=float)
                 kin.v_rel[sel], kin.v_com_rel[sel] = v, vc
+        if drv is not None and kin.pair.size and not getattr(kin, "driven_a", False) and (drv.moving or drv.was_moving):
+            kin.driven_a = True
+            pair = np.asarray(kin.pair, dtype=np.int64)
+            # the free group's driven rows read the twist from cvel (_drive_cvel): their finite-difference a_ext
+            # saw its change since the last step, which the step's extrapolated twist already holds (held over
+            # the step, engines._kinematic): taken out
+            sel = np.flatnonzero(self._kin_fast_rows[pair] & self._kin_had_last[pair])
+            if sel.size:
+                q = pair[sel]
+                j = drv.sides[q, 1]
+                du = drv.v[j] - drv.v_prev[j] + np.cross(drv.w[j] - drv.w_prev[j], self._p2[q] - drv.origin[j])
+                kin.a_ext = np.array(kin.a_ext, dtype=float)
+                kin.a_ext[sel] += du / self.timestep
         return super()._mask(kin)
 
     # -- contract --------------------------------------------------------------
@@ -1880,14 +1921,20 @@ class MujocoAdapter(EngineAdapter):
         blocks = []
         W_fast = None
         if self._fast.index.size:
-            first = self._shared and not self._pushed
-            saved = self._have_last.copy() if first else None
-            blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last, self._push,
-                                        self._last_r, self._last_gap, *self._held_geometry(required))
-            if first and self._first_push(blk["rows"], self._fast.index, blk["x_all"]):
-                self._have_last[:] = saved  # listed again with the push of this step's own rows
+            cv_saved = self._drive_cvel() if self._kin is not None else None  # driven twists in cvel
+            try:
+                first = self._shared and not self._pushed
+                saved = self._have_last.copy() if first else None
                 blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last,
                                             self._push, self._last_r, self._last_gap, *self._held_geometry(required))
+                if first and self._first_push(blk["rows"], self._fast.index, blk["x_all"]):
+                    self._have_last[:] = saved  # listed again with the push of this step's own rows
+                    blk = self._fast.kinematics(m, d, dt, required, self._last_v, self._last_dv, self._have_last,
+                                                self._push, self._last_r, self._last_gap,
+                                                *self._held_geometry(required))
+            finally:
+                if cv_saved is not None:
+                    d.cvel[self._kin_fast_b] = cv_saved
             W_fast = blk
             self._p1[self._fast.index], self._p2[self._fast.index] = blk["p1_all"], blk["p2_all"]
             self._gaps[self._fast.index] = blk["x_all"]
@@ -1964,18 +2011,24 @@ class MujocoAdapter(EngineAdapter):
             # the rows are this step's until the next _compute, which is all the manager and
             # contact_forces read them for)
             b = self._fk_buffers()
-            first = self._shared and not self._pushed
-            saved = self._have_last.copy() if first else None
-            err, n = K.free_kinematics_into(
-                self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat, required,
-                self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push,
-                self._last_r, self._last_gap, *self._held_geometry(required), *b)
-            if first and err == K.ERR_NONE and self._first_push(self._fast_rows(n), self._fast.index, b[11][:, 0]):
-                self._have_last[:] = saved  # listed again with the push of this step's own rows
+            cv_saved = self._drive_cvel() if self._kin is not None else None  # driven twists in cvel
+            try:
+                first = self._shared and not self._pushed
+                saved = self._have_last.copy() if first else None
                 err, n = K.free_kinematics_into(
                     self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat, required,
                     self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push,
                     self._last_r, self._last_gap, *self._held_geometry(required), *b)
+                if first and err == K.ERR_NONE and self._first_push(self._fast_rows(n), self._fast.index,
+                                                                    b[11][:, 0]):
+                    self._have_last[:] = saved  # listed again with the push of this step's own rows
+                    err, n = K.free_kinematics_into(
+                        self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat,
+                        required, self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR,
+                        COINCIDENT_RTOL, self._push, self._last_r, self._last_gap, *self._held_geometry(required), *b)
+            finally:
+                if cv_saved is not None:
+                    d.cvel[self._kin_fast_b] = cv_saved
             p1, p2 = b[9], b[10]
             if err != K.ERR_NONE:
                 self._detection_failed(err)
