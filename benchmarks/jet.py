@@ -60,8 +60,9 @@ def _profile(engine: str, checkpoints: tuple[int, ...]) -> list[dict]:
     return J.memory_profile(engine, spec, checkpoints=checkpoints)
 
 
-#: Plate impacts of the particle-particle jet (PP_IMPACTS, quick: PP_IMPACTS_QUICK): at ~13 impacts per
-#: CPU-second (docs/benchmarks.md) ~20 s; it is reported, not held to a target.
+#: Plate impacts of the particle-particle jet (PP_IMPACTS, quick: PP_IMPACTS_QUICK): at ~165 impacts per
+#: CPU-second under load (the broad phase; ~75 before it, docs/benchmarks.md) ~2 s; it is reported, not
+#: held to a target.
 PP_IMPACTS, PP_IMPACTS_QUICK = 250, 30
 
 

@@ -4,6 +4,8 @@ the numbers docs/jet.md quotes.
     .venv/bin/python scripts/jet_check.py reference     # plate impacts: cor_t, spin_out, W_diss_t, cor_n
     .venv/bin/python scripts/jet_check.py dense         # particle-particle records of the dense jet (MuJoCo)
     .venv/bin/python scripts/jet_check.py pp-rate       # impacts per CPU-second with particle-particle contacts
+    .venv/bin/python scripts/jet_check.py pp-rate --warmup 100 --impacts 150 --broad off   # every pair read
+    .venv/bin/python scripts/jet_check.py pp-rows       # sha256 of the rows of three particle-particle jets
 
 ``reference``: the jet of tests/test_jet.py (0.2 and 0.3 mm glass beads at
 30 +- 3 m/s on polyurethane, 45 deg axis, 20 deg cone, 2e4 particles/s,
@@ -18,6 +20,18 @@ other in flight, MuJoCo, 24 plate impacts): every particle-particle row
 with its closing speed, cor_n against :func:`simulate_impact` for the
 sphere-sphere pair, W_diss_n, W_diss_t, whether it began in an island and
 whether it was alone (no other contact of either bead within half a step).
+
+``pp-rate``: ``make bench``'s ``jet_pp`` jet: plate impacts per CPU-second
+and CPU per step after ``--warmup`` impacts (the onset tables of the
+bead-bead law are built in the first particle-particle contact: warm up
+past it), with the MuJoCo adapter's broad phase automatic, on or off
+(``--broad``; engines/mujoco/_broadphase.py) and its ``broad_late`` and
+``broad_missed`` counts.
+
+``pp-rows``: the sha256 of the JSON rows (sorted keys) of ``jet_pp``'s jet
+(60 impacts), the normal jet of docs/jet.md (40) and the dense jet (24):
+two trees giving the same hashes give the same rows to the bit (the jets
+use only make_pool and run; copy the script into a tree without it).
 """
 
 from __future__ import annotations
@@ -111,34 +125,85 @@ def dense(impacts: int = 24) -> None:
               f"{r['island']} | {alone} |")
 
 
-def pp_rate(impacts: int = 300) -> None:
-    """experiments/configs/jet.toml's jet (45 deg, 20 deg cone, 30 +- 3 m/s, 1e5 particles/s, dt = 0.1 ms)
-    with one size class (0.25 mm) and particle-particle contacts, MuJoCo: impacts per CPU-second of the
-    pool (its own time.process_time), the pool size and the particle-particle records."""
-    a = math.radians(45.0)
-    spec = JetSpec(Nozzle.aimed((0.0, 0.0), (math.cos(a), 0.0, -math.sin(a)), 0.02, 20.0, 1e-3),
-                   Particles(preset("glass"), (2.5e-4,), (1.0,), 30.0, 3.0, 1e5), Plate(preset("polyurethane")),
-                   particle_particle=True, dt=1e-4)
+def pp_spec(which: str = "bench") -> JetSpec:
+    """``bench``: experiments/configs/jet.toml's jet (45 deg, 20 deg cone, 30 +- 3 m/s, 1e5 particles/s,
+    dt = 0.1 ms) with one size class (0.25 mm) and particle-particle contacts (benchmarks.jet._pp_profile's);
+    ``normal``: the jet aimed normal to the plate of docs/jet.md's known limits; ``dense``: the dense jet
+    of tests/test_jet_pp.py."""
+    if which == "bench":
+        a = math.radians(45.0)
+        return JetSpec(Nozzle.aimed((0.0, 0.0), (math.cos(a), 0.0, -math.sin(a)), 0.02, 20.0, 1e-3),
+                       Particles(preset("glass"), (2.5e-4,), (1.0,), 30.0, 3.0, 1e5), Plate(preset("polyurethane")),
+                       particle_particle=True, dt=1e-4)
+    if which == "normal":
+        return JetSpec(Nozzle.aimed((0, 0), (0, 0, -1), 0.02, 5.0, 1e-3),
+                       Particles(preset("glass"), (2.5e-4,), (1.0,), 30.0, 3.0, 1e5), Plate(preset("polyurethane")),
+                       particle_particle=True)
+    import sys
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+    from test_jet_pp import dense_spec  # the test's jet
+
+    return dense_spec()
+
+
+def pp_rate(impacts: int = 300, warmup: int = 0, broad: str = "auto") -> None:
+    """Impacts per CPU-second of the pool (its own time.process_time) of pp_spec("bench") in MuJoCo after
+    ``warmup`` impacts, CPU per step, the pool size and the particle-particle records; ``broad``: the
+    adapter's broad phase (auto, on, off)."""
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ValidityWarning)
-        with make_pool("mujoco", spec, 0) as pool:
-            pool.run(impacts)
+        with make_pool("mujoco", pp_spec("bench"), 0) as pool:
+            pool.adapter.broad_phase = {"auto": None, "on": True, "off": False}[broad]
+            pool.run(warmup)
+            i0, c0, s0 = pool.counts.impacts, pool.cpu_s, pool.counts.steps
+            pool.run(i0 + impacts)
     c = pool.counts
-    print(f"{c.impacts} plate impacts, {c.pp_impacts} particle-particle records, pool {pool.n} "
-          f"({len(pool.pp_pairs)} particle-particle pairs), {pool.cpu_s:.1f} s CPU: "
-          f"{c.impacts / pool.cpu_s:.1f} impacts per CPU-second")
+    di, dc, ds = c.impacts - i0, pool.cpu_s - c0, c.steps - s0
+    print(f"{di} plate impacts after {i0} ({c.pp_impacts} particle-particle records in all), pool {pool.n} "
+          f"({len(pool.pp_pairs)} particle-particle pairs), broad phase {broad}: {dc:.2f} s CPU, "
+          f"{1e3 * dc / ds:.2f} ms per step ({ds} steps): {di / dc:.1f} impacts per CPU-second; "
+          f"broad_late {pool.adapter.broad_late}, broad_missed {pool.adapter.broad_missed}")
+
+
+def pp_rows() -> None:
+    """sha256 of the rows of the three jets of pp_spec (module docstring)."""
+    import hashlib
+    import json
+
+    for which, impacts in (("bench", 60), ("normal", 40), ("dense", 24)):
+        h = hashlib.sha256()
+        n = 0
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ValidityWarning)
+            with make_pool("mujoco", pp_spec(which), 0) as pool:
+                def sink(rows):
+                    nonlocal n
+                    for r in rows:
+                        h.update(json.dumps(r, sort_keys=True, allow_nan=True).encode())
+                        n += 1
+
+                pool.run(impacts, sink=sink)
+        print(f"{which}: {pool.counts.impacts} plate impacts, {pool.counts.pp_impacts} particle-particle, {n} rows, "
+              f"{pool.counts.steps} steps: sha256 {h.hexdigest()}")
 
 
 def main(argv=None) -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("what", choices=("reference", "dense", "pp-rate"))
+    ap.add_argument("what", choices=("reference", "dense", "pp-rate", "pp-rows"))
+    ap.add_argument("--impacts", type=int, default=300, help="pp-rate: plate impacts timed")
+    ap.add_argument("--warmup", type=int, default=0, help="pp-rate: plate impacts before the timing")
+    ap.add_argument("--broad", choices=("auto", "on", "off"), default="auto", help="pp-rate: the broad phase")
     a = ap.parse_args(argv)
     if a.what == "reference":
         reference()
     elif a.what == "dense":
         dense()
+    elif a.what == "pp-rows":
+        pp_rows()
     else:
-        pp_rate()
+        pp_rate(a.impacts, a.warmup, a.broad)
 
 
 if __name__ == "__main__":

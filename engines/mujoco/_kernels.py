@@ -30,7 +30,7 @@ import math
 import numpy as np
 from numba import njit
 
-from engines import _sweep
+from engines import _broad, _sweep
 from engines._sweep import sweep_scalar
 from msf_contact._jitcache import guard as _guard
 
@@ -104,7 +104,22 @@ def _inverse_inertia(W, k, X, b, iI0, iI1, iI2, r0, r1, r2, inv_m, add):
 def free_kinematics_into(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos, ximat, required,
                          last_v, last_dv, have_last, dt, factor, coincident_rtol, push, last_r, last_gap,
                          hold, hold_n, hold_x, pair, x, nrm, point, v_rel, v_com, W, W_com, a_ext, p1, p2, scratch):
-    """Kinematics of every pair of the group and the rows of its candidates.
+    """:func:`free_kinematics_rows_into` over every pair of the group (no broad phase)."""
+    return free_kinematics_rows_into(gi, gf, gi[:, 0], -1, geom_xpos, geom_xmat, cvel, subtree_com, xipos, ximat,
+                                     required, last_v, last_dv, have_last, dt, factor, coincident_rtol, push, last_r,
+                                     last_gap, hold, hold_n, hold_x, pair, x, nrm, point, v_rel, v_com, W, W_com,
+                                     a_ext, p1, p2, scratch)
+
+
+@njit(cache=True, error_model="numpy", _nrt=False)
+def free_kinematics_rows_into(gi, gf, rows, nrows, geom_xpos, geom_xmat, cvel, subtree_com, xipos, ximat, required,
+                              last_v, last_dv, have_last, dt, factor, coincident_rtol, push, last_r, last_gap,
+                              hold, hold_n, hold_x, pair, x, nrm, point, v_rel, v_com, W, W_com, a_ext, p1, p2,
+                              scratch):
+    """Kinematics of the group's pairs ``rows[:nrows]`` (group positions, ascending: the
+    broad phase's, :func:`broad_rows`; nrows < 0: every pair of the group) and the rows of
+    its candidates. A pair not among the rows is left as it is (its a_ext state too: the
+    broad phase clears ``have_last`` of a pair it stops listing).
 
     gi, gf: the group's constants (module docstring); MjData arrays as they
     are; required (P,) bool; last_v, last_dv (P, 3), have_last (P,): the
@@ -131,14 +146,15 @@ def free_kinematics_into(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos,
     allocates nothing, and a call from Python then unboxes its arrays without
     a reference-counted wrapper each.
     """
-    k = gi.shape[0]
+    k = gi.shape[0] if nrows < 0 else nrows
     xs = scratch[:, 0]
     ns = scratch[:, 1:4]
     # detection first, for all pairs: refuse before changing any state
     plane_g = -1
     pn0, pn1, pn2 = 0.0, 0.0, 1.0
     # (MjData rows are indexed in place, not sliced: a slice costs a reference count)
-    for g in range(k):
+    for t in range(k):
+        g = t if nrows < 0 else rows[t]
         ig1, ig2 = gi[g, I_G1], gi[g, I_G2]
         c0, c1, c2 = geom_xpos[ig1, 0], geom_xpos[ig1, 1], geom_xpos[ig1, 2]
         o0, o1, o2 = geom_xpos[ig2, 0], geom_xpos[ig2, 1], geom_xpos[ig2, 2]
@@ -208,7 +224,8 @@ def free_kinematics_into(gi, gf, geom_xpos, geom_xmat, cvel, subtree_com, xipos,
         p1[g, 0], p1[g, 1], p1[g, 2] = q0, q1, q2
         p2[g, 0], p2[g, 1], p2[g, 2] = q0 + s2 * n0, q1 + s2 * n1, q2 + s2 * n2
     n = 0
-    for g in range(k):
+    for t in range(k):
+        g = t if nrows < 0 else rows[t]
         b1, b2 = gi[g, I_B1], gi[g, I_B2]
         r1, r2 = gi[g, I_ROOT1], gi[g, I_ROOT2]
         # angular (0:3), linear velocity at the subtree com (3:6)
@@ -367,10 +384,17 @@ def _moved(dq, a):
 
 @njit(cache=True, error_model="numpy")
 def velocity_change(gi, dq, xmat, xanchor, p1, p2, last_dv):
-    """last_dv[pair] = J_p dq for the group's pairs whose bodies moved (dq
-    (nv,) the change of the generalised velocities), each body at its own
-    contact point: v(point) = dq_lin + (xmat dq_ang) x (point - anchor)."""
-    for g in range(gi.shape[0]):
+    """:func:`velocity_change_rows` over every pair of the group."""
+    velocity_change_rows(gi, gi[:, 0], -1, dq, xmat, xanchor, p1, p2, last_dv)
+
+
+@njit(cache=True, error_model="numpy")
+def velocity_change_rows(gi, rows, nrows, dq, xmat, xanchor, p1, p2, last_dv):
+    """last_dv[pair] = J_p dq for the group's pairs ``rows[:nrows]`` (nrows < 0: every pair)
+    whose bodies moved (dq (nv,) the change of the generalised velocities), each body at its
+    own contact point: v(point) = dq_lin + (xmat dq_ang) x (point - anchor)."""
+    for t in range(gi.shape[0] if nrows < 0 else nrows):
+        g = t if nrows < 0 else rows[t]
         free2 = gi[g, I_FREE2] != 0
         if not (_moved(dq, gi[g, I_DOF1]) or (free2 and _moved(dq, gi[g, I_DOF2]))):
             continue
@@ -391,6 +415,157 @@ def velocity_change(gi, dq, xmat, xanchor, p1, p2, last_dv):
             o2 += sign * (dq[a + 2] + (w0 * e1 - w1 * e0))
         p = gi[g, I_PAIR]
         last_dv[p, 0], last_dv[p, 1], last_dv[p, 2] = o0, o1, o2
+
+
+@njit(cache=True, error_model="numpy", inline="always")
+def _norm3(a0, a1, a2):
+    return math.sqrt(a0 * a0 + a1 * a1 + a2 * a2)
+
+
+@njit(cache=True, error_model="numpy")
+def sphere_reach(bg, bb, broot, bR, bmove, bjnt, bdof, geom_xpos, cvel, subtree_com, xanchor, prev_v, prev_w, dq,
+                 push_g, fresh, gravity, dt, factor, lookahead, c, r, base):
+    """The broad phase's spheres (engines._broad) of the free group's sphere-sphere pairs: for
+    each sphere i of them (geom bg[i] on body bb[i], root broot[i], radius bR[i]; bmove[i]: on a
+    free joint bjnt[i] with first dof bdof[i], else welded to the world) its centre c[i] and
+    r[i] = R_i + lookahead M_i [m], M_i a bound on its share of the candidate test of
+    :func:`free_kinematics_rows_into`: a pair at a gap is a candidate only if
+
+        -x < factor (x' dt + x'' dt^2 / 2) + push,
+
+    with x the gap (at the step start, or the sweep's x of first touch or closest approach:
+    at most 2 |w| dt shorter, w the centres' relative velocity, engines._sweep), x' <= |v_rel|
+    at the contact points, x'' dt <= |a_ext| dt and push <= push_i + push_j + TOUCH_TOL. In a
+    frame moving at any velocity v_ref (the median of the centres' velocities: where the
+    parked and the flying beads are, the bound is only a matter of cost),
+
+        |w| <= V_i + V_j,  |v_rel| <= V_i + V_j,  V_i = |v_c,i - v_ref| + |omega_i| R_i,
+
+    and a_ext dt = v_rel - last v_rel - last dv (the relative acceleration of the two bodies,
+    gravity on both cancelling) is at most A_i + A_j with
+
+        A_i = |v_c,i - v_c,i' - g dt| + (|omega_i| + |omega_i'| + |omega_i - omega_i'|)(R_i + rho_i)
+              + |dq_lin,i| + |dq_ang,i| (|c_i - anchor_i| + R_i),
+
+    primes the last step's, rho_i = |c_i - subtree com| (the lever arm of the last step's
+    point, engines.mujoco._kernels's gap correction), dq the last step's impulses' velocity
+    change (:func:`velocity_change_rows`; a fixed sphere: a_ext = the first-step value, g,
+    inside |0 - 0 - g dt|; ``fresh[i]``: body i jumped at this step's start, so every pair of
+    it takes the first-step value, 0 or g: A_i = |g| dt). So a pair can be a candidate only
+    if its gap is below base_i + base_j + max(push_i, push_j) + TOUCH_TOL, base_i = dt
+    ((factor + 2) V_i + factor A_i / 2) and push_i = push_g[i] (the pair's push is the larger
+    of its bodies' ones: islands.push_reach; :func:`broad_rows`). r_i = R_i + lookahead base_i:
+    ``lookahead`` (> 1) lists a pair earlier than its first possible candidate step at the
+    bodies' speeds, so that its a_ext state (last v_rel, last dv) is read a step before it is
+    needed, as without a broad phase (the push of the next step is known after this step's
+    manager step: BroadPhase.ahead). prev_v, prev_w (m, 3): the last call's centre velocities
+    and spins, updated; base (m,) [m]."""
+    m = bg.shape[0]
+    vc = np.empty((m, 3))
+    for i in range(m):
+        g, b, rt = bg[i], bb[i], broot[i]
+        c[i, 0], c[i, 1], c[i, 2] = geom_xpos[g, 0], geom_xpos[g, 1], geom_xpos[g, 2]
+        e0, e1, e2 = c[i, 0] - subtree_com[rt, 0], c[i, 1] - subtree_com[rt, 1], c[i, 2] - subtree_com[rt, 2]
+        w0, w1, w2 = cvel[b, 0], cvel[b, 1], cvel[b, 2]
+        vc[i, 0] = cvel[b, 3] + (w1 * e2 - w2 * e1)
+        vc[i, 1] = cvel[b, 4] + (w2 * e0 - w0 * e2)
+        vc[i, 2] = cvel[b, 5] + (w0 * e1 - w1 * e0)
+    vref = np.zeros(3)
+    if m:
+        for a in range(3):
+            vref[a] = np.median(vc[:, a])
+    for i in range(m):
+        g, b, rt = bg[i], bb[i], broot[i]
+        R = bR[i]
+        w0, w1, w2 = cvel[b, 0], cvel[b, 1], cvel[b, 2]
+        wn = _norm3(w0, w1, w2)
+        V = _norm3(vc[i, 0] - vref[0], vc[i, 1] - vref[1], vc[i, 2] - vref[2]) + wn * R
+        rho = _norm3(c[i, 0] - subtree_com[rt, 0], c[i, 1] - subtree_com[rt, 1], c[i, 2] - subtree_com[rt, 2])
+        A = (_norm3(vc[i, 0] - prev_v[i, 0] - gravity[0] * dt, vc[i, 1] - prev_v[i, 1] - gravity[1] * dt,
+                    vc[i, 2] - prev_v[i, 2] - gravity[2] * dt)
+             + (wn + _norm3(prev_w[i, 0], prev_w[i, 1], prev_w[i, 2])
+                + _norm3(w0 - prev_w[i, 0], w1 - prev_w[i, 1], w2 - prev_w[i, 2])) * (R + rho))
+        if fresh[i]:
+            A = _norm3(gravity[0], gravity[1], gravity[2]) * dt
+        elif bmove[i]:
+            a = bdof[i]
+            j = bjnt[i]
+            arm = _norm3(c[i, 0] - xanchor[j, 0], c[i, 1] - xanchor[j, 1], c[i, 2] - xanchor[j, 2]) + R
+            A += _norm3(dq[a], dq[a + 1], dq[a + 2]) + _norm3(dq[a + 3], dq[a + 4], dq[a + 5]) * arm
+        base[i] = dt * ((factor + 2.0) * V + 0.5 * factor * A)
+        r[i] = R + lookahead * base[i]
+        prev_v[i, 0], prev_v[i, 1], prev_v[i, 2] = vc[i, 0], vc[i, 1], vc[i, 2]
+        prev_w[i, 0], prev_w[i, 1], prev_w[i, 2] = w0, w1, w2
+
+
+@njit(cache=True, error_model="numpy")
+def _list_pairs(keys, krow, nsph, c, r, push, tol, mark, stamp, out, n, new):
+    """Append to out[:n] the sphere-sphere rows of the pairs of spheres c, r within tol plus the
+    larger push (engines._broad.pushed_pairs), found by their key i nsph + j in ``keys`` (rows
+    ``krow``), that this call (``stamp``) has not listed yet; returns the new count."""
+    pairs = _broad.pushed_pairs(c, r, push, tol)
+    for t in range(pairs.shape[0]):
+        key = pairs[t, 0] * nsph + pairs[t, 1]
+        q = np.searchsorted(keys, key)
+        while q < keys.shape[0] and keys[q] == key:
+            g = krow[q]
+            if mark[g] != stamp:
+                new[g] = mark[g] != stamp - 1
+                mark[g] = stamp
+                out[n] = g
+                n += 1
+            q += 1
+    return n
+
+
+@njit(cache=True, error_model="numpy")
+def broad_rows(gi, fixed_rows, keys, krow, nsph, c, r, push, tol, req, group_of, is_ss, have_last, mark, stamp,
+               prev_rows, nprev, out, new):
+    """The group's rows to read this step (ascending, into out; returns their number): every
+    row of ``fixed_rows`` (the pairs that are not sphere-sphere ones), the sphere-sphere rows
+    whose spheres' broad-phase spheres (c (nsph, 3), r (nsph,): :func:`sphere_reach`) overlap
+    within tol plus the larger of their pushes (push (nsph,) [m]: engines._broad.pushed_pairs)
+    and those the manager requires (``req``: the
+    pairs in contact or with a timing correction to remove; group_of (P,) their group rows, -1
+    outside the group; is_ss (k,): the sphere-sphere rows). The sphere-sphere rows are found
+    by their key i nsph + j (i < j: the spheres' positions) in ``keys`` (sorted), whose rows
+    are ``krow``. A row listed in the last call (prev_rows[:nprev]) and not now gets
+    have_last False (its a_ext starts afresh when it is listed again); new[g]: row g was not
+    listed in the last call. mark (k,) int64: the stamp of the call that last listed each
+    row (this call's: ``stamp``, the last one's stamp - 1)."""
+    n = 0
+    for t in range(fixed_rows.shape[0]):
+        g = fixed_rows[t]
+        new[g] = mark[g] != stamp - 1
+        mark[g] = stamp
+        out[n] = g
+        n += 1
+    for t in range(req.shape[0]):
+        g = group_of[req[t]]
+        if g >= 0 and is_ss[g] and mark[g] != stamp:
+            new[g] = mark[g] != stamp - 1
+            mark[g] = stamp
+            out[n] = g
+            n += 1
+    n = _list_pairs(keys, krow, nsph, c, r, push, tol, mark, stamp, out, n, new)
+    out[:n].sort()
+    for t in range(nprev):
+        g = prev_rows[t]
+        if mark[g] != stamp:
+            have_last[gi[g, I_PAIR]] = False
+    prev_rows[:n] = out[:n]
+    return n
+
+
+@njit(cache=True, error_model="numpy")
+def ahead_rows(keys, krow, nsph, c, r, push, tol, mark, stamp, prev_rows, nprev, out, new):
+    """Append to out[:nprev] (the rows :func:`broad_rows` listed in this call, stamp ``stamp``)
+    the sphere-sphere rows whose spheres c, r overlap within tol plus the larger of their
+    pushes (engines._broad.pushed_pairs) and are not listed yet, marking them listed (and in
+    prev_rows); returns the new number of rows."""
+    n = _list_pairs(keys, krow, nsph, c, r, push, tol, mark, stamp, out, nprev, new)
+    prev_rows[nprev:n] = out[nprev:n]
+    return n
 
 
 @njit(cache=True, error_model="numpy")
@@ -654,4 +829,4 @@ def add_couples(q, xmat, b, dof, tq):
 
 
 # numba's cache keyed on every source compiled in (msf_contact._jitcache)
-_guard(__name__, _sweep)
+_guard(__name__, _sweep, _broad)

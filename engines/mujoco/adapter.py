@@ -124,7 +124,7 @@ from engines.base import (
     PairSpec,
     check_law_curvature,
 )
-from engines.mujoco import _held, _native, _resting
+from engines.mujoco import _broadphase, _held, _native, _resting
 from engines.mujoco._known import SCRATCH_IDS, KnownForces, StepResponse
 from engines.mujoco._stepping import StepTracker
 from msf_contact._validate import ValidityWarning
@@ -605,6 +605,9 @@ class MujocoAdapter(EngineAdapter):
         # the kinematic tree of each pair's two bodies (P, 2); -1: welded to the world
         self._trees = np.array([[model.body_treeid[p.body1], model.body_treeid[p.body2]] for p in self._pairs],
                                int).reshape(-1, 2)
+        self._by_tree = None  # _tree_pairs' table
+        self._jump_t = np.full(len(self._pairs), np.nan)  # when each pair's bodies last jumped (engine time [s])
+        self._jumped = (math.nan, None)  # (engine time [s], trees or None: all) of the last jump
         #: velocity_offset() by replaying the last step without its timing corrections (exact under
         #: every integrator, one more mj_step a call) instead of M^-1 J^T J at the end pose; the hook
         #: then keeps each step's start state (engines.mujoco.robots.RestEnergy sets it)
@@ -632,6 +635,8 @@ class MujocoAdapter(EngineAdapter):
         self._last_gap = np.zeros(P, bool)
         self._fast = _FreeGroup.of(model, [p for p in self._pairs if _vectorisable(model, p)])
         self._pp_idx = np.sort(self._fast.index[~self._fast.plane])  # the free group's sphere-sphere pairs
+        self._is_pp = np.zeros(P, bool)
+        self._is_pp[self._pp_idx] = True
         self._no_hold = np.zeros(P, bool)  # (_held_geometry)
         self._is_fast = np.zeros(P, bool)
         self._is_fast[self._fast.index] = True
@@ -665,6 +670,17 @@ class MujocoAdapter(EngineAdapter):
             idx = self._fast.index
             span = idx.size and np.array_equal(idx, np.arange(idx[0], idx[0] + idx.size))
             self._fast_at = slice(int(idx[0]), int(idx[0]) + idx.size) if span else idx
+        #: the broad phase of the free group's sphere-sphere pairs (engines.mujoco._broadphase; compiled
+        #: only): None (automatic: on with at least BROAD_MIN_PAIRS such pairs), True or False
+        self.broad_phase: bool | None = None
+        #: sphere-sphere pairs that were a candidate in the step the broad phase first listed them (their
+        #: first a_ext the first-step value, not the last step's difference: engines.mujoco._broadphase)
+        self.broad_late = 0
+        #: candidate sphere-sphere pairs the broad phase left out (its bound failed; warned)
+        self.broad_missed = 0
+        self._broad = None
+        self._broad_wanted = None  # (any sphere-sphere row, the automatic choice)
+        self._rows = (None, -1)  # the free group's rows read this step (rows, n; n = -1: all)
         self.manager.set_body_probe(self._probe, batch=self._probe_batch)
         self.manager.set_orientation_free([[_orientation_free(model, p.geom1, p.body1, p.fixed1),
                                             _orientation_free(model, p.geom2, p.body2, p.fixed2)]
@@ -706,6 +722,7 @@ class MujocoAdapter(EngineAdapter):
         self._push = np.full(P, TOUCH_TOL)  # extra candidate reach from the bodies' other contacts [m] (_islands.push_reach)
         self._gaps = np.full(P, np.nan)  # every pair's x read in the last step [m] (push_reach's paths; NaN: not read)
         self._pushed = False  # push_reach has run (the first step lists again with its own push: _first_push)
+        self._push_budget = np.zeros(0)  # push_reach's budget of each body key [m] (the broad phase's)
         # islands need a moving body in two pairs (or two slots of one pair); without one (N spheres on a plate,
         # the jet without particle-particle contacts) every contact is alone: no coupling, no push reach
         moving = keys[keys >= 0]
@@ -1458,12 +1475,10 @@ class MujocoAdapter(EngineAdapter):
         self._forces_before_jump = self.last_forces
         trees = self._tracker.jumped
         if trees is None:
-            hit = np.ones(len(self._pairs), bool)
-        else:  # np.isin(self._trees, trees).any(axis=1) by a table over the tree ids (-1: the world)
-            jumped = np.zeros(int(self.model.ntree) + 1, bool)
-            jumped[np.asarray(trees, dtype=np.int64) + 1] = True
-            hit = jumped[self._trees + 1].any(axis=1)
-        if not np.any(hit):
+            hit = np.arange(len(self._pairs))
+        else:  # np.isin(self._trees, trees).any(axis=1): the pairs of each tree that jumped (_tree_pairs)
+            hit = self._tree_pairs(np.asarray(trees, dtype=np.int64))
+        if not hit.size:
             return
         self.jumps += 1
         why = f"MuJoCo's state jumped at t = {float(self.data.time):.6g} s: {self._tracker.why}"
@@ -1471,13 +1486,32 @@ class MujocoAdapter(EngineAdapter):
             why += (" (MuJoCo's sleeping islands are enabled, <flag sleep=\"enable\"/>: a body put to sleep or "
                     "woken inside a step reads as such a jump; the adapter does not support them: disable sleep, "
                     "or take the interrupted contacts' records as lost)")
-        n = self.manager.interrupt(np.flatnonzero(hit), why)
+        n = self.manager.interrupt(hit, why)
+        self._jump_t[hit] = float(self.data.time)  # (_broad_late: their a_ext restarts anyway)
+        self._jumped = (float(self.data.time), None if trees is None else np.asarray(trees, dtype=np.int64))
         self._have_last[hit] = False
         self._last_dv[hit] = 0.0
         if n:
             self.interrupted += n
             warnings.warn(f"{why}; {n} MSF contact(s) in progress were interrupted without a record "
                           f"(adapter.interrupted = {self.interrupted})", RuntimeWarning, stacklevel=2)
+
+    def _tree_pairs(self, trees: np.ndarray) -> np.ndarray:
+        """The pairs (ascending indices) with a body in one of the kinematic trees ``trees`` (-1: the
+        world), from a table of each tree's pairs built on first use (the jet's pool places a few beads a
+        step, each in 266 of its 35,511 pairs: a test over all pairs cost ~1.5 ms a step)."""
+        if self._by_tree is None:
+            t = self._trees.reshape(-1) + 1  # (2P,) tree ids + 1 of both sides
+            pair = np.repeat(np.arange(len(self._pairs)), 2)
+            order = np.argsort(t, kind="stable")
+            start = np.searchsorted(t[order], np.arange(int(self.model.ntree) + 2))
+            self._by_tree = (pair[order], start)
+        pairs, start = self._by_tree
+        trees = trees + 1
+        if trees.size == 1:  # ascending already (a stable sort of repeated ascending pairs): drop repeats only
+            out = pairs[start[trees[0]]:start[trees[0] + 1]]
+            return out[np.concatenate(([True], out[1:] != out[:-1]))] if out.size > 1 else out
+        return np.unique(np.concatenate([pairs[start[k]:start[k + 1]] for k in trees.tolist()]))
 
     def _geometry(self, p: _Pair, law: bool = True) -> Detection:
         """The contact of pair p from the current poses (engines._geometry;
@@ -1994,6 +2028,9 @@ class MujocoAdapter(EngineAdapter):
         if self._native_result is not None or (self.fused and _resting.eligible(self)):
             # the resting step in one compiled call (engines.mujoco._resting); if the step is not a
             # resting one it stops after the free group's kinematics and the general path goes on
+            self._rows = (None, -1)
+            if self._broad is not None:
+                self._broad.reset()
             done, applied, n = _resting.step(self, CANDIDATE_FACTOR)
             if done:
                 return applied
@@ -2011,31 +2048,48 @@ class MujocoAdapter(EngineAdapter):
             # the rows are this step's until the next _compute, which is all the manager and
             # contact_forces read them for)
             b = self._fk_buffers()
+            bp = self._broad_phase()
+            rows, nrows = bp.rows(self, required, CANDIDATE_FACTOR) if bp is not None else (self._gi[:, 0], -1)
+            self._rows = (rows, nrows)
             cv_saved = self._drive_cvel() if self._kin is not None else None  # driven twists in cvel
             try:
-                first = self._shared and not self._pushed
+                first = self._shared and not self._pushed  # (the broad phase reads every row in its first step)
                 saved = self._have_last.copy() if first else None
-                err, n = K.free_kinematics_into(
-                    self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat, required,
-                    self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR, COINCIDENT_RTOL, self._push,
-                    self._last_r, self._last_gap, *self._held_geometry(required), *b)
-                if first and err == K.ERR_NONE and self._first_push(self._fast_rows(n), self._fast.index,
-                                                                    b[11][:, 0]):
+                hold = self._held_geometry(required)
+                err, n = K.free_kinematics_rows_into(
+                    self._gi, self._gf, rows, nrows, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos,
+                    d.ximat, required, self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR,
+                    COINCIDENT_RTOL, self._push, self._last_r, self._last_gap, *hold, *b)
+                if first and nrows < 0 and err == K.ERR_NONE and self._first_push(self._fast_rows(n),
+                                                                                  self._fast.index, b[11][:, 0]):
                     self._have_last[:] = saved  # listed again with the push of this step's own rows
-                    err, n = K.free_kinematics_into(
-                        self._gi, self._gf, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat,
-                        required, self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR,
-                        COINCIDENT_RTOL, self._push, self._last_r, self._last_gap, *self._held_geometry(required), *b)
+                    err, n = K.free_kinematics_rows_into(
+                        self._gi, self._gf, rows, nrows, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos,
+                        d.ximat, required, self._last_v, self._last_dv, self._have_last, dt, CANDIDATE_FACTOR,
+                        COINCIDENT_RTOL, self._push, self._last_r, self._last_gap, *hold, *b)
             finally:
                 if cv_saved is not None:
                     d.cvel[self._kin_fast_b] = cv_saved
+            if nrows >= 0:
+                bp.call = (n, hold, self._push)  # for the rows read after the manager's step (_broad_extra)
             p1, p2 = b[9], b[10]
             if err != K.ERR_NONE:
                 self._detection_failed(err)
             fast = self._fast_rows(n)
-            self._p1[self._fast_at], self._p2[self._fast_at] = p1, p2
-            if self._shared:
-                self._gaps[self._fast_at] = b[11][:, 0]  # every pair's detected x (the kernel's scratch)
+            if nrows < 0:
+                self._p1[self._fast_at], self._p2[self._fast_at] = p1, p2
+                if self._shared:
+                    self._gaps[self._fast_at] = b[11][:, 0]  # every pair's detected x (the kernel's scratch)
+            else:
+                r = rows[:nrows]
+                at = self._fast.index[r]
+                self._p1[at], self._p2[at] = p1[r], p2[r]
+                if self._shared:  # the pairs not read: no gap for push_reach's paths (NaN)
+                    self._gaps[self._fast_at] = np.nan
+                    self._gaps[at] = b[11][r, 0]
+                late = bp.new[self._group_of[fast["pair"]]]
+                if late.any():
+                    self._broad_late(fast["pair"][late])
         self._compute_rest(fast, p1, p2)
         return False
 
@@ -2051,6 +2105,65 @@ class MujocoAdapter(EngineAdapter):
         more = bool(np.any(push > self._push))
         self._push = np.maximum(self._push, push)
         return more
+
+    def _broad_phase(self):
+        """The broad phase to use this step (engines.mujoco._broadphase.BroadPhase), or None: every
+        row of the free group is read (``broad_phase`` False, or None with fewer than
+        BROAD_MIN_PAIRS sphere-sphere pairs or BROAD_PAIRS_PER_SPHERE per sphere)."""
+        on = self.broad_phase
+        bp = self._broad
+        if on is False:
+            if bp is not None:
+                bp.reset()
+            return None
+        if bp is None:
+            if self._broad_wanted is None:
+                self._broad_wanted = (bool(np.any(_broadphase.sphere_pairs(self._gi, self._gf))),
+                                      _broadphase.wanted(self._gi, self._gf))
+            some, auto = self._broad_wanted
+            if not some or (on is None and not auto):
+                return None
+            bp = self._broad = _broadphase.BroadPhase(self.model, self._gi, self._gf, len(self._pairs))
+        return bp
+
+    def _broad_extra(self, n2: int) -> None:
+        """After the manager's step: read this step's kinematics of the rows the broad phase added
+        (engines.mujoco._broadphase.BroadPhase.gap_rows: the pairs a push can cross, whose gaps
+        push_reach takes; .ahead: the pairs the next step's push and this step's forces can bring
+        within reach, whose a_ext state the next step needs), rows[nrows:n2] of ``_rows``. None of
+        them can be a candidate in this step (the broad phase's bound, with this step's push); one
+        that is (``broad_missed``, warned) was not handed to the manager."""
+        K, d, bp = self._kernels, self.data, self._broad
+        rows, nrows = self._rows
+        if n2 == nrows:
+            return
+        n, hold, push = bp.call
+        b = self._fk_bufs
+        extra = rows[nrows:n2]
+        err, found = K.free_kinematics_rows_into(
+            self._gi, self._gf, extra, extra.size, d.geom_xpos, d.geom_xmat, d.cvel, d.subtree_com, d.xipos, d.ximat,
+            self._required, self._last_v, self._last_dv, self._have_last, self.timestep, CANDIDATE_FACTOR,
+            COINCIDENT_RTOL, push, self._last_r, self._last_gap, *hold, *(a[n:] for a in b[:9]), *b[9:])
+        if err != K.ERR_NONE:
+            self._detection_failed(err)
+        at = self._fast.index[extra]
+        self._p1[at], self._p2[at] = b[9][extra], b[10][extra]
+        self._gaps[at] = b[11][extra, 0]
+        self._rows = (rows, n2)
+        if found:
+            self.broad_missed += found
+            missed = b[0][n:n + found]
+            warnings.warn(f"the broad phase left out {found} sphere-sphere pair(s) that were candidates at t = "
+                          f"{float(d.time):.6g} s (pairs {missed.tolist()}): their contact was not handed to the "
+                          "contact manager in this step (adapter.broad_missed; engines.mujoco._broadphase). "
+                          "Set adapter.broad_phase = False", RuntimeWarning, stacklevel=2)
+
+    def _broad_late(self, pairs: np.ndarray) -> None:
+        """Count the sphere-sphere pairs that are candidates in the step the broad phase first listed
+        them (module engines.mujoco._broadphase), but for those whose bodies jumped at this step's
+        start (a bead placed by the jet's pool): their a_ext restarts from the first-step value
+        whatever the broad phase."""
+        self.broad_late += int(np.count_nonzero(self._jump_t[pairs] != float(self.data.time)))
 
     def _fast_rows(self, n: int) -> dict:
         """The free group's n candidate rows in its kinematics buffers, as ContactKinematics fields."""
@@ -2105,8 +2218,13 @@ class MujocoAdapter(EngineAdapter):
         self._last_kin, self._last_out = kin, out
         Qc = self._couples(out)
         if self._shared:
-            self._push = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR, self._gaps)
+            if self._rows[1] >= 0:  # the broad phase: the gaps a push can cross, read (_broad_gaps)
+                self._broad_extra(self._broad.gap_rows(self, kin))
+            self._push, self._push_budget = push_reach(self._keys, kin.pair, kin.x, kin.v_rel, dt, CANDIDATE_FACTOR,
+                                                       self._gaps, budgets=True)
             self._pushed = True
+        if self._rows[1] >= 0:
+            self._broad_extra(self._broad.ahead(self, kin, out))
         self.last_forces = out if kin.pair.size else None
         pair = np.asarray(out.pair, dtype=np.int64)
         force = np.asarray(out.force, dtype=float).reshape(-1, 3)
@@ -2160,7 +2278,14 @@ class MujocoAdapter(EngineAdapter):
             self._solve_m(dq, Qdt.reshape(1, -1))
             dq = dq[0]
             if fast:
-                K.velocity_change(self._gi, dq, d.xmat, d.xanchor, p1, p2, self._last_dv)
+                rows, nrows = self._rows
+                if nrows < 0:
+                    K.velocity_change(self._gi, dq, d.xmat, d.xanchor, p1, p2, self._last_dv)
+                else:
+                    K.velocity_change_rows(self._gi, rows, nrows, dq, d.xmat, d.xanchor, p1, p2, self._last_dv)
+                if self._broad is not None:  # the next step's bound on a_ext (BroadPhase.rows)
+                    self._broad.dq[:] = dq
+                    self._broad.dq_set = True
             for i, J in jacs:
                 self._last_dv[i] = J @ dq
         K.held_dv(self._last_dv, pair, keep, kin.W, force, dt)
@@ -2187,10 +2312,13 @@ class MujocoAdapter(EngineAdapter):
         mgr = self.manager
         if self._pp_idx.size == 0:
             return self._no_hold, mgr.n_in, mgr.x
-        q = self._pp_idx
         hold = np.zeros(len(self._pairs), bool)
+        # only a required pair can hold (the jet's 35,245 sphere-sphere pairs, ~20 required: the masks over
+        # all of them cost ~1.5 ms a step)
+        q = np.flatnonzero(required)
+        q = q[self._is_pp[q]]
         resting = mgr.active[q] & ((float(self.data.time) - mgr.t_onset[q]) > SETTLE_AFTER_DURATIONS * mgr.tau_est[q])
-        hold[q] = (required[q] & (mgr.tau_est[q] < self.timestep) & ~resting
+        hold[q] = ((mgr.tau_est[q] < self.timestep) & ~resting
                    & (mgr.active[q] | np.any(mgr.J[q] != 0.0, axis=1)))
         return hold, mgr.n_in, mgr.x
 
@@ -2397,7 +2525,8 @@ class MujocoAdapter(EngineAdapter):
         I = m.body_inertia[b]
         where = np.full(m.nbody + 1, -1, np.int64)  # body key -> its position in b (-1: not asked; [-1]: fixed)
         where[b] = np.arange(b.size)
-        p = np.flatnonzero(np.any(mgr.J != 0.0, axis=1))
+        p = mgr.required_pairs  # the pairs with a timing correction are among them (any(axis=1) over all P is slow)
+        p = p[np.any(mgr.J[p] != 0.0, axis=1)]
         for side, sgn, pts in ((0, 1.0, self._p1), (1, -1.0, self._p2)):
             i = where[self._keys[p, side]]
             on = i >= 0
