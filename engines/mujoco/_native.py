@@ -347,8 +347,8 @@ _WATCHED: dict = {}  # class -> its watched subclass (None: cannot be watched)
 
 #: attributes whose value no native step leaves stale, read without bringing the rest up to date (a
 #: loop of ``adapter.step(1)`` and its geom check, ``adapter.data``)
-_FRESH = frozenset({"step", "data", "model", "timestep", "steps", "_check_geoms", "_geom_shape", "_geom_ids",
-                    "_geom_shape0"})
+_FRESH = frozenset({"step", "data", "model", "timestep", "steps", "compiled", "_kernels", "_check_geoms",
+                    "_geom_shape", "_geom_ids", "_geom_shape0"})
 
 
 def _get(obj, name):

@@ -1252,6 +1252,11 @@ class MujocoAdapter(EngineAdapter):
         (domain randomisation between episodes: a ball's radius set from 0.02 to 0.03 m kept the contact at
         0.02 m, the ball resting 10 mm inside the floor, with no word): its law's curvature, the analytic
         paths' radius and the narrow phase's shapes were taken from the geom then."""
+        if self.compiled:  # (the common case in one compiled pass: no copy of the k geoms' shapes)
+            m = self.model
+            if self._kernels.geom_changed(m.geom_size, m.geom_pos, m.geom_quat, self._geom_ids,
+                                          self._geom_shape0) < 0:
+                return
         now = self._geom_shape()
         if np.array_equal(now, self._geom_shape0):
             return
