@@ -1,8 +1,9 @@
 """MuJoCo 4's threaded batch (``mujoco.batch.Batch``) must not step an
 MSF model silently with MuJoCo's own contact while the adapter's hook is
 installed: today it refuses the Python hook with its own ValueError
-(docs/engines.md, "Your own loop"). A native hook would change that; this
-test then has to say what the batch does instead."""
+(docs/engines.md, "Your own loop"), also while the adapter's native
+mjcb_passive sits in MuJoCo's raw pointer (the batch reads the bindings'
+Python hook)."""
 
 import pytest
 
@@ -30,3 +31,14 @@ def test_a_batch_refuses_to_step_while_the_msf_hook_is_installed():
         with pytest.raises(ValueError, match="accepts only C callbacks"):
             b.step(nstep=100)
     assert (b.bind("qpos")[:, 2] == z0).all()  # nothing stepped
+    # with the native mjcb_passive in MuJoCo's raw pointer (engines.mujoco._native: put there once the ball
+    # rests), the batch still sees the bindings' Python hook and refuses
+    from engines.mujoco import _native
+
+    with installed(adapter):
+        for _ in range(1500):
+            mujoco.mj_step(model, data)
+        assert _native._STATE["slot"].value == _native._STATE["cfunc"].address
+        with pytest.raises(ValueError, match="accepts only C callbacks"):
+            b.step(nstep=100)
+    assert (b.bind("qpos")[:, 2] == z0).all()
