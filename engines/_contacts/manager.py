@@ -21,6 +21,7 @@ from .compiled import CompiledPath, kernel_law
 from .records import Records
 from .reference import NumpyPath
 from .balance import IslandBalance
+from .gaps import KeptGapCheck
 from .island_compiled import island_blocks, step_islands
 from .islands import TOUCH_TOL, island_lever, islands, step_island
 from .resting import settle_island
@@ -207,6 +208,9 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         #: a contact's force 62 -> 246 N in one step and 93 mJ gained, issue 13) (P,)
         self.settle_rigid = np.ones(P, bool)
         self._gain_note: list[str | None] = [None] * P  # an island energy gain seen during the pair's contact
+        #: a note for the pair's next contact's record (note_next_contact: a kept gap flagged, gaps.KeptGapCheck)
+        self._next_note: list[str | None] = [None] * P
+        self._kept_check = KeptGapCheck(P)
         self._island_contact = np.zeros(P, bool)  # the pair's current contact was in an island at some step
         self._held_force = np.zeros((P, 3))  #: the step-averaged forces held into the next step [N] (P, 3)
         self.J = z3.copy()  #: timing-correction impulse applied in the last step, removed in the next [N s] (P, 3)
@@ -317,7 +321,7 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             self._invalid(code, row, pair, x, n, point, v, vc, W, Wc, a)
         n = n_unit
         self._normal[pair] = n
-        x = self._own_gaps(pair, x, n, v, a)
+        x = self._own_gaps(pair, x, n, v, a, W)
         L = None
         lev = getattr(kin, "lever", None)
         if lev is not None:
@@ -507,11 +511,12 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self._kg_of_pair[p] = self._kidx.get(g, -1)
         self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
         self.pairs[p] = dataclasses.replace(self.pairs[p], law=law)
-    def _own_gaps(self, pair, x, n, v, a) -> np.ndarray:
+    def _own_gaps(self, pair, x, n, v, a, W=None) -> np.ndarray:
         """The gaps (k,) [m] the step starts from: a pair not in contact that was
         a candidate in the last step (and that the adapter marks in ``own_gap``)
-        keeps the manager's own gap from the end of that step, relaxed toward the engine's x by settle_rate and never past
-        touching. The engine's semi-implicit Euler moves a body by dt v_end, so
+        keeps the manager's own gap from the end of that step, relaxed toward the engine's x by settle_rate
+        and never past touching (a bouncing row's kept gap ratchets so: gaps.KEPT_GAP_DOC, which also flags
+        a kept gap the engine's bodies are found inside). The engine's semi-implicit Euler moves a body by dt v_end, so
         after a step in which its velocity changed by dv its gap leads the
         integrated one by up to dt |dv| / 2 (a light ball rattling between two
         stiff contacts: up to 0.4 mm at 1 ms); taken as is, a contact would
@@ -535,8 +540,25 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         xd0_new, an_new = np.empty(k), np.empty(k)
         K.approach_rates(pair, v, self.dv_corr, a, n, xd0_new, an_new)
         out = np.empty_like(x)
+        # x~ = x - (dt/2) x'_0: the engine's x less its half-step lead, the gap the integration follows
+        # (gaps.KEPT_GAP_DOC); sh: the rows on which it is exact (a free sphere on a fixed body)
+        xt = x - 0.5 * self.dt * xd0_new
+        sh = self._shadow_rows(pair)
+        # the rows the never-silent check may concern (gaps.KeptGapCheck: a kept gap with the engine's
+        # bodies inside each other beyond their half-step lead), with the manager's gap before the step
+        cand = np.flatnonzero(xt > 0.0)
+        if cand.size:
+            q = pair[cand]
+            # the rows whose kept gap follows x~ (sh): a link's point moves with its joints, whose limits,
+            # drives and pushes act inside the step the free flight does not see, a box's corner with its
+            # turn (the adapters' DeepOnsets flags what those leave)
+            cand = cand[~self.active[q] & self._listed[q] & sh[cand]]
+            xm_before = self.x[pair[cand]]
         K.own_gaps(pair, x, self.x, self.active, self._listed, self.own_gap, self.xdot, self._xd0, self._an,
                    self._off, xd0_new, an_new, self.dt, self.settle_rate, TOUCH_TOL, out)
+        if cand.size and W is not None:  # kept: out is the kept gap (<= 0), not the engine's x
+            kept = out[cand] != x[cand]
+            self._kept_check.check(self, pair[cand], kept, xt[cand], xm_before, xd0_new[cand], n[cand], W[cand])
         # the kept overlaps the kernel clamped to touching (out = 0 where x != 0: a kept gap g >= 0) of
         # pairs whose surface is still recovering start from min(g, x_r(t0), x) (state.RECOVERY_DOC; g in
         # the kernel's arithmetic; never deeper than the engine's own overlap x)
@@ -550,6 +572,15 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             out[rec] = np.minimum(xm + self.settle_rate * (x[rec] - xm), x_r)
             self.x_surface_onset[q] = x_r
         return out
+
+    def _shadow_rows(self, pair) -> np.ndarray:
+        """(k,) bool: the rows on which x~ is the gap the integration follows (gaps.KEPT_GAP_DOC): a free sphere (own_gap,
+        settle_rigid, its orientation free) on a fixed body (a coupling key -1; without coupling blocks,
+        set_coupling, each body has one pair and any such row)."""
+        sh = self.own_gap[pair] & self.settle_rigid[pair] & self.orientation_free[pair].all(axis=1)
+        if self._coupling is None:
+            return sh
+        return sh & (self._coupling[0][pair] < 0).any(axis=1)
 
     def residual_rows(self, pp, t: float | None = None) -> np.ndarray:
         """x_r(t) [m] (k,) of the pairs pp: the recovering surface of each one's last
@@ -665,6 +696,19 @@ class ContactManager(CompiledPath, NumpyPath, Records):
                 if note not in rec.outside_validity:
                     rec.outside_validity.append(note)
                 return
+
+    def note_next_contact(self, p: int, note: str) -> None:
+        """Put ``note`` in the outside_validity of pair p's next contact (a pair
+        not in contact: gaps.KeptGapCheck); the latest note is kept."""
+        self._next_note[p] = note
+
+    @property
+    def kept_gap_flags(self) -> list:
+        """Kept gaps the engine's bodies were found inside (gaps.KeptGapCheck):
+        (t [s], pair, engine's overlap less its half-step lead [m], the
+        manager's gap [m], that overlap's elastic energy [J], approach energy [J])
+        per flagged row-step."""
+        return list(self._kept_check.flags)
 
     def _cross_corrections(self, pair) -> None:
         """Bring dv_corr, dvc_corr (the engine's velocity offsets the last

@@ -164,8 +164,8 @@ class Records:
             self.x_surface_onset[q] = np.minimum(np.maximum(self.x_onset[q], 0.0), self.x_res[q])
         if capped.any():  # an onset past the law's range: flagged from the start
             self.outside[pp[capped]] = True
-        for q in pp.tolist():
-            self._gain_note[q] = None
+        for q in pp.tolist():  # a note left for this contact while the pair was apart (note_next_contact)
+            self._gain_note[q], self._next_note[q] = self._next_note[q], None
         if self._probe is not None:
             for q in pp:
                 self.body_in[int(q)] = dict(self._probe(int(q)) or {})
