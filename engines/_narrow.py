@@ -566,6 +566,41 @@ def side_ends(shape, pos, rot, plane_pos, plane_normal) -> SideEnds:
     return SideEnds(x, lowest, rise, math.asin(abs(sin_t)), n.copy())
 
 
+def side_end_constants(shape) -> tuple[float, float, float]:
+    """(e, off, half) [m] of :func:`side_ends` for ``shape`` (a capsule or a cylinder): the
+    ends' radius, their centres' offset from the axis and from the middle."""
+    if isinstance(shape, Capsule):
+        return shape.radius, 0.0, shape.half_length
+    if isinstance(shape, Cylinder):
+        return shape.edge_radius, shape.radius - shape.edge_radius, shape.half_length - shape.edge_radius
+    raise ValueError(f"a line contact needs a capsule or a cylinder, not {type(shape).__name__}")
+
+
+def side_ends_many(e, off, half, pos, rot, plane_pos, plane_normal) -> list[SideEnds]:
+    """:func:`side_ends` of k sides at once (issue 13, the walkers' rest cost): e, off,
+    half (k,) their :func:`side_end_constants`, pos (k, 3), rot (k, 3, 3), plane_pos (k, 3),
+    plane_normal (k, 3). The same float operations row by row, so the same values bit for
+    bit (tests/test_rest_cost_paths.py): z . n and |radial| as the sums of three products
+    in order (what numpy's dot and norm of one 3-vector give), the ends' heights by one
+    stacked matmul (each (2, 3) @ (3,) as numpy computes it alone), asin by math.asin."""
+    e, off, half = (np.asarray(a, dtype=float) for a in (e, off, half))
+    n = np.asarray(plane_normal, dtype=float)
+    z = np.asarray(rot, dtype=float).reshape(-1, 3, 3)[:, :, 2]
+    sin_t = np.minimum(np.maximum(z[:, 0] * n[:, 0] + z[:, 1] * n[:, 1] + z[:, 2] * n[:, 2], -1.0), 1.0)
+    radial = -(n - sin_t[:, None] * z)
+    cos_t = np.sqrt(radial[:, 0] * radial[:, 0] + radial[:, 1] * radial[:, 1] + radial[:, 2] * radial[:, 2])
+    pos_c = cos_t > 0.0
+    m = np.where(pos_c[:, None], radial / np.where(pos_c, cos_t, 1.0)[:, None], 0.0)
+    hz = half[:, None] * z
+    pos = np.asarray(pos, dtype=float)
+    off_m = off[:, None] * m
+    centres = np.stack([pos + -hz, pos + hz], axis=1) + off_m[:, None, :]  # (k, 2, 3)
+    lowest = centres - (e[:, None] * n)[:, None, :]
+    x = -np.matmul(lowest - np.asarray(plane_pos, dtype=float)[:, None, :], n[:, :, None])[:, :, 0]
+    return [SideEnds(x[i], lowest[i], np.array([s, -s]), math.asin(abs(s)), n[i].copy())
+            for i, s in enumerate(sin_t.tolist())]
+
+
 def kernel_onset_one(law: MSFLaw, code: int, lc, v: float, m: float, omega_h: float | None = None) -> dict:
     """MSFLaw.onset_one for a law the compiled kernel knows (code, constants
     lc (NLC,) of engines._kernel), each collision integrated by
@@ -841,7 +876,7 @@ class SideLine:
         self.ends: SideEnds | None = None
         self._hold = np.zeros(2, bool)  # the ends whose pose stays (update's moving)
 
-    def update(self, pos, rot, plane_pos, plane_normal, busy, template, moving=None) -> bool:
+    def update(self, pos, rot, plane_pos, plane_normal, busy, template, moving=None, ends=None) -> bool:
         """The side's ends at the shape's pose (``pos`` [m] (3,), ``rot`` (3, 3))
         against the plane (``plane_pos`` [m] (3,), unit ``plane_normal`` (3,))
         and the mode: a contact in progress (any of the pair's slots ``busy``
@@ -854,7 +889,8 @@ class SideLine:
         manager's active and not settled): their ends keep their pose
         (:meth:`slots`); None: none. Returns True when the mode changed (the
         slots start afresh)."""
-        self.ends = ends = side_ends(self.shape, pos, rot, plane_pos, plane_normal)
+        # ends: side_ends at this pose if computed already (side_ends_many, the adapters' lying sides at once)
+        self.ends = ends = side_ends(self.shape, pos, rot, plane_pos, plane_normal) if ends is None else ends
         self._hold = np.zeros(2, bool) if moving is None else np.asarray(moving, dtype=bool)[:2].copy()
         changed = False
         if not np.asarray(busy).any() and self.law is not False:

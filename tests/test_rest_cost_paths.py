@@ -5,7 +5,11 @@ line pairs with a candidate row in the step (_pose_lines), and
 elastic_energy takes only the onset keys a law reads (state.TakenOnset).
 Compared here bit for bit against every pair posed in every step, on a
 gymnasium walker (its own XML, RK4, frame_skip) moving and then lying at
-rest."""
+rest. Likewise the pairs read through Jacobians all at once
+(MujocoAdapter._slow_rows: the narrow phase's contact list read as arrays,
+the capsule sides' ends by side_ends_many, J, v_rel and a_ext of every pair
+by stacked matmuls, the candidates' Jacobians kept for the coupling blocks)
+against the pair-by-pair path (_slow_rows_each)."""
 import warnings
 
 import numpy as np
@@ -19,17 +23,18 @@ gym = pytest.importorskip("gymnasium")  # gymnasium[mujoco] is in the test extra
 TORQUE_STEPS, REST_STEPS = 30, 20  # env steps (x4 mj_steps): Walker2d falls within the torques and lies still
 
 
-def _run(lazy: bool):
+def _run(lazy: bool, batched: bool = True, name: str = "Walker2d-v5"):
     from engines.mujoco import MujocoAdapter, installed
     from scripts.gym_check import gym_msf
 
-    env, model, data, pairs = gym_msf("Walker2d-v5")
+    env, model, data, pairs = gym_msf(name)
     rng = np.random.default_rng(5)
     traj = []
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         ad = MujocoAdapter(model, data, pairs)
         ad._lazy_pose = lazy
+        ad._batched_rows = batched
         posed = []
         line_slots = ad._line_slots
         ad._line_slots = lambda k, n: posed.append(k) or line_slots(k, n)
@@ -50,6 +55,40 @@ def test_lazy_line_poses_change_no_bit():
     np.testing.assert_array_equal(t_lazy, t_all)  # positions and velocities, every env step
     assert rec_lazy == rec_all
     assert n_lazy < n_all  # the lazy path left out the poses nothing read
+
+
+def test_batched_rows_change_no_bit():
+    t_new, rec_new, _, ad = _run(True, True, "Ant-v5")
+    t_ref, rec_ref, _, _ = _run(True, False, "Ant-v5")
+    assert rec_new, "the ant's sides must have touched the floor"
+    assert any(ad._line[k].mode == "line" for k in ad._line), "a side must lie on the floor at the end"
+    np.testing.assert_array_equal(t_new, t_ref)  # positions and velocities, every env step
+    assert rec_new == rec_ref
+
+
+def test_side_ends_many_is_side_ends():
+    from scipy.spatial.transform import Rotation
+
+    from engines._narrow import side_end_constants, side_ends, side_ends_many
+    from msf_contact.shapes import Capsule, Cylinder
+
+    rng = np.random.default_rng(3)
+    k = 40
+    shapes = [Capsule(rng.uniform(0.01, 0.1), rng.uniform(0.05, 0.3)) if i % 3 else
+              Cylinder(rng.uniform(0.02, 0.1), rng.uniform(0.05, 0.2), edge_radius=1e-3) for i in range(k)]
+    c = np.array([side_end_constants(q) for q in shapes])
+    rot = Rotation.random(k, random_state=4).as_matrix()
+    z = np.array([0.6, 0.8, 0.0])  # lying exactly flat on the plane z = 0 (cos tilt 1, rise +-0)
+    rot[::4] = np.stack([np.cross(z, [0.0, 0.0, 1.0]), [0.0, 0.0, 1.0], z], axis=1)
+    pos, plane = rng.standard_normal((k, 3)), rng.standard_normal((k, 3))
+    normal = np.tile([0.0, 0.0, 1.0], (k, 1))
+    normal[1::2] = Rotation.random(k // 2, random_state=5).as_matrix()[:, :, 2]
+    many = side_ends_many(c[:, 0], c[:, 1], c[:, 2], pos, rot, plane, normal)
+    for i in range(k):
+        one = side_ends(shapes[i], pos[i], rot[i], plane[i], normal[i])
+        for f in ("x", "lowest", "rise", "normal"):
+            np.testing.assert_array_equal(getattr(many[i], f), getattr(one, f))
+        assert many[i].tilt == one.tilt
 
 
 def test_taken_onset_takes_only_what_the_law_reads():

@@ -144,8 +144,19 @@ class IslandBalance:
         bodies are distinct); S0 of each from :meth:`stored_rows`."""
         if io.size < 2:
             return
-        S = np.add.reduceat(self.stored_rows(mgr, pp), io[:-1]) if pp.size else np.zeros(io.size - 1)
         probed = [np.asarray(a, dtype=float) for a in self.probe(keys)]
+        # S0 only of the islands the probe accounts for (open leaves the others unchecked, S0 unread: a
+        # robot's links, every step of a walker at rest; each row's energy is its own, so the islands'
+        # sums are the same as over all rows)
+        fin = np.logical_and.reduce([np.isfinite(a) for a in probed])
+        ok = np.logical_and.reduceat(fin, ko[:-1]) if fin.size else np.zeros(io.size - 1, bool)
+        S = np.zeros(io.size - 1)
+        if np.all(ok):
+            S = np.add.reduceat(self.stored_rows(mgr, pp), io[:-1]) if pp.size else S
+        elif np.any(ok):
+            sel = np.flatnonzero(ok)
+            rows = np.concatenate([np.arange(io[i], io[i + 1]) for i in sel])
+            S[sel] = np.add.reduceat(self.stored_rows(mgr, pp[rows]), np.r_[0, np.cumsum(np.diff(io)[sel])[:-1]])
         for i in range(io.size - 1):
             b = slice(ko[i], ko[i + 1])
             self.open(mgr, pp[io[i]:io[i + 1]], keys[b], float(S[i]), [a[b] for a in probed])

@@ -599,6 +599,10 @@ class MujocoAdapter(EngineAdapter):
         self._jac = np.zeros((3, nv))
         self._jac2 = np.zeros((3, nv))
         self._in_hook = False  # inside the passive hook (derived quantities are current)
+        self._sides = None  # the capsule sides' constants for _side_ends_all, made on first use
+        #: _slow_rows all the pairs at once (False: pair by pair, _slow_rows_each, the reference)
+        self._batched_rows = True
+        self._step_jac: dict = {}  # the step's (J, J_c, M_eff^-1 J^T) of the slow candidate rows (_slow_rows)
         self._installed = False
         #: classifies every hook call: a new step, the same step again, an RK4 stage, a jump
         self._tracker = StepTracker(model)
@@ -649,6 +653,7 @@ class MujocoAdapter(EngineAdapter):
             if q.kind2 == "narrow" and q.fixed2 and not q.fixed1 and _simple_free_body(model, q.body1):
                 self.manager.own_gap[q.index] = True
         self._slow = [p for p in self._pairs if not self._is_fast[p.index]]
+        self._slow_index = np.array([p.index for p in self._slow], dtype=np.int64)  # pair index of each slow pair
         #: the actuator, user and constraint forces' change between steps, seen by the pairs read through
         #: Jacobians in the step it acts (engines.mujoco._known); None without such pairs
         self._known = KnownForces(model, data) if self._slow else None
@@ -1566,7 +1571,7 @@ class MujocoAdapter(EngineAdapter):
         margin = np.zeros(self._narrow.geoms.size)
         np.maximum.at(margin, nb.j1, reach)
         np.maximum.at(margin, nb.j2, reach)
-        raw = self._narrow.detect(d, margin)
+        raw = self._narrow.detect(d, margin, columns=self._batched_rows)
         busy = np.zeros(len(self._pairs), bool)
         busy[self.manager.required_pairs] = True
         out = []
@@ -1574,6 +1579,7 @@ class MujocoAdapter(EngineAdapter):
         # candidate row need them this step (_pose_lines); outside the hook (separating) at once
         lazy = self._in_hook and self._lazy_pose
         self._pose_due = []
+        ends = self._side_ends_all()
         for k, ((g1, g2, s1, s2, match), (x, pts, nrm)) in enumerate(zip(self._narrow_pairs, raw)):
             first = nb.first[k]
             if match.n == 1 and x.size and (s1 is not None and hasattr(s1, "support")
@@ -1589,7 +1595,7 @@ class MujocoAdapter(EngineAdapter):
             if k in self._box:
                 out.append(self._box_slots(k, first, busy[first:first + match.n]))
                 continue
-            mode = self._line_mode(k, busy[first:first + match.n]) if k in self._line else None
+            mode = self._line_mode(k, busy[first:first + match.n], ends.get(k)) if k in self._line else None
             if mode == "line":
                 if lazy:
                     out.append(self._line_points(k, match.n))
@@ -1756,9 +1762,33 @@ class MujocoAdapter(EngineAdapter):
         """Contacts found deep at their onset on a link, flagged (:meth:`_check_deep_onsets`)."""
         return self._deep.count
 
-    def _line_mode(self, k: int, busy) -> str:
+    def _side_ends_all(self) -> dict:
+        """{narrow geom pair k: its side's ends at the current state} for the capsules on a
+        plane (engines._narrow.SideLine, not a cylinder's), all at once
+        (engines._narrow.side_ends_many: the values side_ends gives each, bit for bit)."""
+        if not self._batched_rows:  # the reference: side_ends pair by pair (SideLine.update)
+            return {}
+        sides = self._sides
+        if sides is None:
+            from engines._narrow import SideLine, side_end_constants
+
+            ks = [k for k, st in self._line.items() if type(st) is SideLine]
+            c = np.array([side_end_constants(self._line[k].shape) for k in ks], dtype=float).reshape(-1, 3)
+            g = np.array([self._narrow_pairs[k][:2] for k in ks], dtype=np.int64).reshape(-1, 2)
+            sides = self._sides = (ks, c[:, 0].copy(), c[:, 1].copy(), c[:, 2].copy(), g[:, 0].copy(), g[:, 1].copy())
+        ks, e, off, half, g1, g2 = sides
+        if not ks:
+            return {}
+        from engines._narrow import side_ends_many
+
+        d = self.data
+        return dict(zip(ks, side_ends_many(e, off, half, d.geom_xpos[g1], d.geom_xmat[g1], d.geom_xpos[g2],
+                                           d.geom_xmat[g2].reshape(-1, 3, 3)[:, :, 2])))
+
+    def _line_mode(self, k: int, busy, ends=None) -> str:
         """Line or point contacts for narrow geom pair k (a capsule or
-        cylinder on a plane) at the current state (engines._narrow.SideLine.update)."""
+        cylinder on a plane) at the current state (engines._narrow.SideLine.update;
+        ends: its side's ends at this state if known, :meth:`_side_ends_all`)."""
         st = self._line[k]
         d = self.data
         g1, g2, s1, _, match = self._narrow_pairs[k]
@@ -1767,7 +1797,7 @@ class MujocoAdapter(EngineAdapter):
         mgr = self.manager
         moving = mgr.active[first:first + match.n] & ~mgr.settled[first:first + match.n]
         if st.update(d.geom_xpos[g1], d.geom_xmat[g1].reshape(3, 3), d.geom_xpos[g2], rot2[:, 2], busy,
-                     self.pairs[first].law, moving):
+                     self.pairs[first].law, moving, **({} if ends is None else {"ends": ends})):
             match.anchor[:] = np.nan  # the slots start afresh in the other mode
         return st.mode
 
@@ -2420,7 +2450,88 @@ class MujocoAdapter(EngineAdapter):
         """The candidate rows of the pairs read through Jacobians (a dict of
         ContactKinematics fields, None: no candidate), their points and
         Jacobians {pair: (point1, point2, J)}, and (pair, J (3, nv)) of every
-        slow pair for the a_ext bookkeeping, which is done here for them."""
+        slow pair for the a_ext bookkeeping, which is done here for them.
+        Each pair's contact first (in pair order: the laws and hand-offs it
+        sets), then the Jacobians, v_rel, a_ext and the candidate test of all
+        the pairs at once (stacked matmuls: each pair's J @ qvel as numpy
+        computes it alone; tests/test_rest_cost_paths.py), then the
+        candidates' inverse inertias pair by pair."""
+        if not self._batched_rows:
+            return self._slow_rows_each(required)
+        m, d = self.model, self.data
+        dt = self.timestep
+        rows = []
+        points = {}
+        dq_known = self._known.change() if self._known is not None else None
+        held = self.manager._held_force
+        weld = self.model.body_weldid
+        # this step's J, J_c and M_eff^-1 J^T of each candidate row, which _coupling_blocks_jac
+        # takes for the same points in the same step (the same calls: the same values)
+        step_jac = self._step_jac = {}
+        slow = self._slow
+        k = len(slow)
+        X = np.empty(k)
+        N, PT, P1, P2 = np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3)), np.empty((k, 3))
+        for r, p in enumerate(slow):
+            if p.kind2 == "narrow":
+                X[r], N[r], PT[r], P1[r], P2[r] = self._narrow_row(p)
+            else:
+                det = self._geometry(p)
+                X[r], N[r], PT[r], P1[r], P2[r] = float(det.x[0]), det.normal[0], det.point[0], det.point1[0], \
+                    det.point2[0]
+        # each body's Jacobian at its own surface point (they differ across a gap); a body
+        # welded to the world has none (J - 0 = J: left out)
+        J = np.empty((k, 3, m.nv))
+        for r, p in enumerate(slow):
+            self._jacobian(p.body1, P1[r], J[r])
+            if weld[p.body2]:
+                J[r] -= self._jacobian(p.body2, P2[r], self._jac2)
+        idx = self._slow_index
+        v_rel = np.matmul(J, d.qvel)
+        have = self._have_last[idx]
+        a_ext = (v_rel - self._last_v[idx] - self._last_dv[idx]) / dt
+        for r in np.flatnonzero(~have).tolist():
+            a_ext[r] = self._first_step_a_ext(slow[r])
+        if dq_known is not None and np.any(have):  # this step's drives, user and constraint forces
+            h = np.flatnonzero(have)
+            a_ext[h] = a_ext[h] + np.matmul(J[h], dq_known)
+            for r in h[np.any(held[idx[h]] != 0.0, axis=1)].tolist():
+                # its own held force left its a_ext: not the rows' change of its response
+                a_ext[r] = a_ext[r] - J[r] @ self._known.held_change(J[r].T @ held[idx[r]])
+        self._last_v[idx], self._last_dv[idx], self._have_last[idx] = v_rel, 0.0, True
+        jacs = [(p.index, J[r]) for r, p in enumerate(slow)]
+        # closing_distance (the same operations as in Python floats, the dots as three products in order)
+        vn = v_rel[:, 0] * N[:, 0] + v_rel[:, 1] * N[:, 1] + v_rel[:, 2] * N[:, 2]
+        an = a_ext[:, 0] * N[:, 0] + a_ext[:, 1] * N[:, 1] + a_ext[:, 2] * N[:, 2]
+        reach = CANDIDATE_FACTOR * (np.maximum(-vn, 0.0) * dt + 0.5 * np.maximum(-an, 0.0) * dt * dt)
+        self._gaps[idx] = X
+        cand = (X > -(reach + self._push[idx])) | required[idx]
+        for r in np.flatnonzero(cand).tolist():
+            p = slow[r]
+            self._slow_row(p, p.index, X[r], N[r], PT[r], P1[r], P2[r], J[r], v_rel[r], a_ext[r], rows, points, step_jac)
+        late = np.flatnonzero(~cand) if self._shared and not self._pushed else ()
+        if len(late) and rows:
+            # the first step: the push of this step's own rows lists the pairs it reaches too
+            # (_slow_rows_each; islands.push_reach)
+            cols = list(zip(*rows))
+            push = push_reach(self._keys, np.array(cols[0], dtype=np.int64), np.array(cols[1], dtype=float),
+                              np.array(cols[4], dtype=float), dt, CANDIDATE_FACTOR, self._gaps)
+            self._push = np.maximum(self._push, push)
+            for r in late.tolist():
+                p = slow[r]
+                if X[r] > -(reach[r] + self._push[p.index]):
+                    self._slow_row(p, p.index, X[r], N[r], PT[r], P1[r], P2[r], J[r], v_rel[r], a_ext[r], rows, points,
+                                   step_jac)
+        return self._rows_out(rows, points, jacs)
+
+    def _slow_rows_each(self, required) -> tuple[dict | None, dict, list]:
+        """The candidate rows of the pairs read through Jacobians (a dict of
+        ContactKinematics fields, None: no candidate), their points and
+        Jacobians {pair: (point1, point2, J)}, and (pair, J (3, nv)) of every
+        slow pair for the a_ext bookkeeping, which is done here for them.
+        Pair by pair: the reference of :meth:`_slow_rows` (``_batched_rows`` False;
+        tests/test_rest_cost_paths.py), with no Jacobians kept for _coupling_blocks_jac."""
+        self._step_jac = {}
         m, d = self.model, self.data
         dt = self.timestep
         rows = []
@@ -2479,6 +2590,11 @@ class MujocoAdapter(EngineAdapter):
             for p, i, x, n, point, p1, p2, J, v_rel, a_ext, reach in late:
                 if x > -(reach + self._push[i]):
                     row(p, i, x, n, point, p1, p2, J, v_rel, a_ext)
+        return self._rows_out(rows, points, jacs)
+
+    def _rows_out(self, rows: list, points: dict, jacs: list) -> tuple[dict | None, dict, list]:
+        """:meth:`_slow_rows`' return from its rows (pair, x, n, point, v_rel, v_com, W, W_com,
+        a_ext) each, after the line pairs' poses (_pose_lines)."""
         if self._narrow is not None:
             self._pose_lines(points)
         if not rows:
@@ -2490,9 +2606,9 @@ class MujocoAdapter(EngineAdapter):
                      W=np.array(cols[6], dtype=float), W_com=np.array(cols[7], dtype=float),
                      a_ext=np.array(cols[8], dtype=float)), points, jacs)
 
-    def _slow_row(self, p, i, x, n, point, p1, p2, J, v_rel, a_ext, rows, points) -> None:
+    def _slow_row(self, p, i, x, n, point, p1, p2, J, v_rel, a_ext, rows, points, keep=None) -> None:
         """A candidate row of slow pair p (index i) into rows, its points and Jacobian into points
-        (:meth:`_slow_rows`)."""
+        (:meth:`_slow_rows`); keep: a dict to keep its (J, J_c, M_eff^-1 J^T) in under i, or None."""
         m, d = self.model, self.data
         weld = self.model.body_weldid
         # W = J M^-1 J^T, W_com = J_c M^-1 J^T
@@ -2508,6 +2624,8 @@ class MujocoAdapter(EngineAdapter):
         W_com = Jc @ MinvJT.T
         rows.append((i, x, n, point, v_rel, v_com, W, W_com, a_ext))
         points[i] = (p1, p2, J)
+        if keep is not None:
+            keep[i] = (J, Jc, MinvJT)
 
     def _keep_points(self, points: dict) -> None:
         for i, (p1, p2, _J) in points.items():
@@ -2598,7 +2716,11 @@ class MujocoAdapter(EngineAdapter):
         bodies and links of chains alike. Called inside the hook (the state is current)."""
         m, d = self.model, self.data
         J, Jc, MJ = {}, {}, {}
+        kept = self._step_jac if self._in_hook else {}
         for i in np.unique(np.concatenate([pp, pq])).tolist():
+            if i in kept:  # _slow_rows' of this step, at the same points (_keep_points)
+                J[i], Jc[i], MJ[i] = kept[i]
+                continue
             p = self._pairs[i]
             Ji = self._jacobian(p.body1, self._p1[i], self._jac).copy()
             Ji -= self._jacobian(p.body2, self._p2[i], self._jac2)
@@ -2606,6 +2728,8 @@ class MujocoAdapter(EngineAdapter):
             Jci -= self._jacobian(p.body2, d.xipos[p.body2], self._jac2)
             J[i], Jc[i] = Ji, Jci
         for i in np.unique(pq).tolist():
+            if i in MJ:
+                continue
             out = np.zeros((3, m.nv))
             self._solve_m(out, np.ascontiguousarray(J[i]))
             MJ[i] = out

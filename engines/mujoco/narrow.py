@@ -44,11 +44,14 @@ class NarrowPhase:
             self._index.setdefault((int(g1), int(g2)), []).append(i)
         self.pairs = [(int(a), int(b)) for a, b in pairs]
 
-    def detect(self, data: mujoco.MjData, margin) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    def detect(self, data: mujoco.MjData, margin, columns: bool = True) -> list[tuple[np.ndarray, np.ndarray,
+                                                                                      np.ndarray]]:
         """Per pair: (x [m] (k,), point [m] (k, 3), normal (k, 3)) of the k
         points MuJoCo finds within ``margin`` [m] (per managed geom (G,) or
         one number): x = -dist the approach (negative: a gap), the point
-        midway between the surfaces, the unit normal from body 2 to body 1."""
+        midway between the surfaces, the unit normal from body 2 to body 1.
+        columns: the contact list read as arrays (False: contact by contact,
+        the reference; the same values, tests/test_rest_cost_paths.py)."""
         m, d = self.model, self.data
         d.qpos[:] = data.qpos
         if m.nmocap:
@@ -57,6 +60,35 @@ class NarrowPhase:
         m.geom_margin[self.geoms] = np.maximum(margin, MARGIN_FLOOR)
         mujoco.mj_kinematics(m, d)
         mujoco.mj_collision(m, d)
+        if not columns:
+            return self._found_each(d)
+        found = [[] for _ in self.pairs]
+        nc = int(d.ncon)
+        c = d.contact
+        # the contact list's columns read at once (each contact's fields alone cost a Python object each)
+        g1, g2 = c.geom1[:nc].tolist(), c.geom2[:nc].tolist()
+        signs = [[] for _ in self.pairs]
+        index = self._index
+        for j in range(nc):
+            a, b = g1[j], g2[j]
+            # MuJoCo's normal (frame row 0) points from geom1 to geom2
+            for key, sg in (((a, b), -1.0), ((b, a), 1.0)):
+                for i in index.get(key, ()):
+                    found[i].append(j)
+                    signs[i].append(sg)
+        if nc:
+            dist, pos, frame = c.dist[:nc], c.pos[:nc], c.frame[:nc, :3]
+        out = []
+        for rows, sg in zip(found, signs):
+            if rows:
+                r = np.array(rows)
+                out.append((-dist[r], pos[r], np.array(sg)[:, None] * frame[r]))
+            else:
+                out.append((np.zeros(0), np.zeros((0, 3)), np.zeros((0, 3))))
+        return out
+
+    def _found_each(self, d: mujoco.MjData) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """:meth:`detect`'s result from the contacts of ``d`` read one by one."""
         found = [[] for _ in self.pairs]
         for c in d.contact[:d.ncon]:
             a, b = int(c.geom1), int(c.geom2)
