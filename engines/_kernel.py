@@ -1119,3 +1119,70 @@ def own_gaps(pair, x, xm_state, active, listed, own_gap, xdot, xd0, an, off, xd0
 
 # numba's cache keyed on every source compiled in (msf_contact._jitcache)
 _guard(__name__)
+
+
+# --------------------------------------------- a lying side's end, row by row (issue 13) ---
+# The walkers' resting step evaluated every law group's normal force and elastic energy in
+# Python, one group at a time (engines._contacts.state.relax, ContactManager._resting). For the
+# rows whose law is a lying side's end (CODE_SIDE, no ring: engines._narrow.SideEndLaw) these
+# give the numpy methods' values bit for bit, all groups in one call: the same operations in the
+# same order as SideEndLaw._parts (an array of approaches), _width_one (one approach, the
+# numpy path of a call with one row) and MSFLaw.normal_force, and elastic_energy's 8-point sum
+# as numpy sums a row of 8 (pairwise: ((0+1)+(2+3))+((4+5)+(6+7))); tests/test_rest_cost_paths.py.
+
+
+@jit_inline
+def _side_width_one(lc, x):
+    """W_end [m] of engines._narrow.SideEndLaw._width_one at x [m] (its association of the sum)."""
+    if x <= 0.0:
+        return 0.0
+    e, L, rise = lc[LC_SE], lc[LC_SL], lc[LC_SRISE]
+    a = 2.0 * math.sqrt(max(x * (2.0 * lc[LC_SRW] - x), 0.0))
+    rho0 = math.sqrt(max(x * (2.0 * e - x), 0.0))
+    d, half = x - lc[LC_SDROP], 0.5 * L
+    if rise > 0.0:
+        ell = min(max(d / rise, 0.0), half)
+    elif rise < 0.0:
+        ell = half - min(max(d / rise, 0.0), half)
+    else:
+        ell = half if d > 0.0 else 0.0
+    return 0.5 * ((1.0 - ell / L) * a + rho0 + max(rho0, ell))
+
+
+@jit_inline
+def _side_force(lc, E, eta, x, xd, one):
+    """MSFLaw.contact_normal_force of a SideEndLaw at x [m], x' [m/s] (one: the numpy path of one
+    row, _width_one; else the array path, _parts)."""
+    x = max(x, 0.0)
+    if one:
+        W = _side_width_one(lc, x)
+    else:
+        wa, b = _side_parts(lc, x)
+        W = 0.5 * (wa + b)
+    F = W * (2.0 * eta * xd + (2.0 / 3.0) * E * x)
+    return max(F, 0.0) if lc[LC_FZ] != 0.0 else F
+
+
+@jit
+def side_normal_forces(LC, kg, oc, p, x, one, out):
+    """F_n(x, 0) [N] into out (k,) of rows p (k,) at x [m] (k,): their kernel groups kg (k,)
+    (CODE_SIDE, no ring), onset constants oc[p] (E, eta_E); one (k,) bool: the row was alone in
+    its group's numpy call."""
+    for r in range(x.shape[0]):
+        q = p[r]
+        out[r] = _side_force(LC[kg[r]], oc[q, 0], oc[q, 1], x[r], 0.0, one[r])
+
+
+@jit
+def side_elastic_energy(LC, kg, oc, p, x, s2, s, w, acc, out):
+    """engines._contacts.state.elastic_energy [J] into out (k,) of rows p (k,) at x [m] (k,):
+    their kernel groups kg (k,) (CODE_SIDE, no ring), onset constants oc[p]; s2, s, w (8,): the
+    Gauss-Legendre nodes squared, nodes and weights on [0, 1]; acc (8,) scratch."""
+    for r in range(x.shape[0]):
+        q = p[r]
+        lc = LC[kg[r]]
+        xr = x[r]
+        for j in range(8):
+            F = _side_force(lc, oc[q, 0], oc[q, 1], xr * s2[j], 0.0, False)
+            acc[j] = F * (2.0 * xr * s[j]) * w[j]
+        out[r] = ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]))

@@ -9,7 +9,10 @@ rest. Likewise the pairs read through Jacobians all at once
 (MujocoAdapter._slow_rows: the narrow phase's contact list read as arrays,
 the capsule sides' ends by side_ends_many, J, v_rel and a_ext of every pair
 by stacked matmuls, the candidates' Jacobians kept for the coupling blocks)
-against the pair-by-pair path (_slow_rows_each)."""
+against the pair-by-pair path (_slow_rows_each); and the lying sides' ends'
+normal forces and elastic energies of every law group in one compiled call
+(state.side_forces, side_energies: relax, ContactManager._resting) against
+the laws' own numpy methods, group by group."""
 import warnings
 
 import numpy as np
@@ -35,6 +38,7 @@ def _run(lazy: bool, batched: bool = True, name: str = "Walker2d-v5"):
         ad = MujocoAdapter(model, data, pairs)
         ad._lazy_pose = lazy
         ad._batched_rows = batched
+        ad.manager._batched_laws = batched
         posed = []
         line_slots = ad._line_slots
         ad._line_slots = lambda k, n: posed.append(k) or line_slots(k, n)
@@ -89,6 +93,46 @@ def test_side_ends_many_is_side_ends():
         for f in ("x", "lowest", "rise", "normal"):
             np.testing.assert_array_equal(getattr(many[i], f), getattr(one, f))
         assert many[i].tilt == one.tilt
+
+
+def test_side_kernel_is_the_laws_numpy():
+    """engines._kernel.side_normal_forces and side_elastic_energy give SideEndLaw's
+    contact_normal_force (an array of approaches, and one alone: _width_one's sum) and
+    elastic_energy bit for bit, flat and tilted either way, at and near x = 0."""
+    import math
+
+    from engines import _kernel as K
+    from engines._contacts.compiled import kernel_law
+    from engines._contacts.state import _GL_S, _GL_S2, _GL_W
+    from engines._narrow import SideEndLaw
+
+    tmpl = make_law("msf", ContactPair(preset("natural-rubber"), preset("steel")), Curvature.sphere_on_plane(0.02))
+    rng = np.random.default_rng(7)
+    laws = []
+    for i in range(12):
+        r = rng.uniform(0.01, 0.05)
+        law = (SideEndLaw(tmpl, r, 1e-3, rng.uniform(0.05, 0.4), True) if i % 3 == 0
+               else SideEndLaw(tmpl, r, r, rng.uniform(0.05, 0.4), False))
+        tilt = (0.0, 1e-4, 0.02, 0.1)[i % 4]
+        law.set_pose(tilt, (0.0, math.sin(tilt), -math.sin(tilt), math.sin(tilt))[i % 4])
+        laws.append(law)
+    LC = np.array([kernel_law(q)[1] for q in laws])
+    k = 9
+    for g, law in enumerate(laws):
+        assert kernel_law(law)[0] == K.CODE_SIDE
+        x = np.concatenate([[0.0, 1e-9], rng.uniform(0.0, 3e-3, k - 2)])
+        on = {"E": rng.uniform(1e6, 5e6, k), "eta_E": rng.uniform(1e2, 1e4, k)}
+        oc = np.zeros((k, K.NOC))
+        oc[:, 0], oc[:, 1] = on["E"], on["eta_E"]
+        p, kg, out = np.arange(k), np.full(k, g), np.empty(k)
+        K.side_normal_forces(LC, kg, oc, p, x, np.zeros(k, bool), out)
+        np.testing.assert_array_equal(out, law.contact_normal_force(x, np.zeros(k), on))
+        K.side_normal_forces(LC, kg, oc, p, x, np.ones(k, bool), out)
+        alone = [law.contact_normal_force(x[i:i + 1], np.zeros(1), {q: v[i:i + 1] for q, v in on.items()})[0]
+                 for i in range(k)]
+        np.testing.assert_array_equal(out, alone)
+        K.side_elastic_energy(LC, kg, oc, p, x, _GL_S2, _GL_S, _GL_W, np.empty(8), out)
+        np.testing.assert_array_equal(out, elastic_energy(law, x, on))
 
 
 def test_taken_onset_takes_only_what_the_law_reads():

@@ -27,7 +27,8 @@ from .islands import TOUCH_TOL, island_lever, islands, step_island
 from .resting import settle_island
 from .state import (
     L_G0, L_ON, L_W01, L_W11, L_XREF, NL, NY, SETTLE_AFTER_DURATIONS, SETTLE_RATE, SETTLED_SPEED_RATIO, TANGENTIAL_MODES,
-    ENERGY_APPROACH_RTOL, TakenOnset, approach_of_energy, elastic_energy, residual_indentation,
+    ENERGY_APPROACH_RTOL, TakenOnset, approach_of_energy, elastic_energy, residual_indentation, side_forces,
+    side_kernel_rows,
     _cross, _dot, _name, _tangent_basis,
 )
 
@@ -117,6 +118,9 @@ class ContactManager(CompiledPath, NumpyPath, Records):
         self._slot_pos = {(i, int(self._group_of[i])): int(self._pos[i]) for i in range(P)}  # set_law
         self._kg_of_pair = np.array([kidx.get(g, -1) for g in self._group_of], dtype=np.int64)
         self._all_kernel = bool(np.all(self._kg_of_pair >= 0))
+        #: the lying sides' ends' forces and energies of every law group in one compiled call
+        #: (state.side_forces, side_energies; False: group by group, the reference they are tested against)
+        self._batched_laws = True
         self._coupling: tuple[np.ndarray, Callable] | None = None  # set_coupling
         self._together: np.ndarray | None = None  # set_together: pairs solved together also at rest (None: all)
         self._balance: IslandBalance | None = None  # set_energy_probe
@@ -788,7 +792,12 @@ class ContactManager(CompiledPath, NumpyPath, Records):
             xr = np.maximum(self.x[pair[r]], 0.0)
             nWn = np.einsum("ki,kij,kj->k", n[r], W[r], n[r])
             F = np.zeros(r.size)
-            for g in np.unique(self._group_of[pair[r]]):
+            grp = self._group_of[pair[r]]
+            side = side_kernel_rows(self, pair[r]) if self._batched_laws else np.zeros(r.size, bool)
+            if np.any(side):  # the lying sides' ends of every group at once (the same values as below)
+                _, inv, cnt = np.unique(grp, return_inverse=True, return_counts=True)
+                F[side] = side_forces(self, pair[r][side], xr[side], (cnt[inv] == 1)[side])
+            for g in np.unique(grp[~side]):
                 sel = self._group_of[pair[r]] == g
                 at = self._pos[pair[r][sel]]
                 o = TakenOnset(self._onset[g], lambda arr: arr[at])

@@ -529,6 +529,46 @@ def elastic_energy(law, x, onset) -> np.ndarray:
     return np.sum(F * (2.0 * x[:, None] * _GL_S[None, :]) * _GL_W[None, :], axis=1)
 
 
+_GL_S2 = _GL_S**2  # elastic_energy's x' = x s^2 (numpy's value of the power)
+
+
+def side_kernel_rows(mgr, pp) -> np.ndarray:
+    """(k,) bool: the rows pp (k,) in contact whose law the compiled kernel has as a lying side's
+    end (CODE_SIDE, no ring: engines._narrow.SideEndLaw), whose normal force and elastic energy
+    :func:`side_forces` and :func:`side_energies` give for all their groups in one call."""
+    from .. import _kernel as K
+
+    kg = mgr._kg_of_pair[pp]
+    ok = kg >= 0
+    if np.any(ok):
+        k = kg[ok]
+        ok[ok] = (mgr._kcodes[k] == K.CODE_SIDE) & (mgr._kLC[k, K.LC_SRING] == 0.0)
+    return ok & mgr.active[pp]
+
+
+def side_forces(mgr, pp, x, one) -> np.ndarray:
+    """F_n(x, 0) [N] (k,) of rows pp (k,) of :func:`side_kernel_rows` at x [m] (k,): each group's
+    ``contact_normal_force`` bit for bit (engines._kernel.side_normal_forces; one (k,) bool: the
+    row alone in its group's call, which takes SideEndLaw._width_one's sum)."""
+    from .. import _kernel as K
+
+    out = np.empty(pp.size)
+    K.side_normal_forces(mgr._kLC, mgr._kg_of_pair[pp], mgr._oc, np.ascontiguousarray(pp, dtype=np.int64),
+                         np.ascontiguousarray(x, dtype=float), np.ascontiguousarray(one, dtype=np.bool_), out)
+    return out
+
+
+def side_energies(mgr, pp, x) -> np.ndarray:
+    """:func:`elastic_energy` [J] (k,) of rows pp (k,) of :func:`side_kernel_rows` at x [m] (k,),
+    bit for bit, every group in one call (engines._kernel.side_elastic_energy)."""
+    from .. import _kernel as K
+
+    out = np.empty(pp.size)
+    K.side_elastic_energy(mgr._kLC, mgr._kg_of_pair[pp], mgr._oc, np.ascontiguousarray(pp, dtype=np.int64),
+                          np.ascontiguousarray(x, dtype=float), _GL_S2, _GL_S, _GL_W, np.empty(8), out)
+    return out
+
+
 #: relative tolerance of approach_of_energy's Newton iteration on the elastic
 #: energy (two orders above the double's round-off of E_el's 8-point sum)
 ENERGY_APPROACH_RTOL = 1e-12
@@ -585,6 +625,14 @@ def relax(mgr, p, x0, x_eng, n, v, settle, io=None) -> np.ndarray:
         return x0 + np.where(up & ~mgr.settled[p], 0.0, dx)
     dS = np.zeros(p.size)  # the elastic energy each move stores [J] (< 0: releases)
     mv = np.flatnonzero(dx != 0)
+    side = side_kernel_rows(mgr, p[mv]) if mgr._batched_laws else np.zeros(mv.size, bool)
+    if np.any(side):  # the lying sides' ends of every group at once (the same values as below)
+        sel = mv[side]
+        pp = p[sel]
+        E = side_energies(mgr, np.concatenate([pp, pp]),
+                          np.concatenate([np.maximum(x0[sel] + dx[sel], 0.0), np.maximum(x0[sel], 0.0)]))
+        dS[sel] = E[:sel.size] - E[sel.size:]
+        mv = mv[~side]
     gid = mgr._group_of[p[mv]]
     for g in np.unique(gid):
         sel = mv[gid == g]

@@ -2638,6 +2638,9 @@ class MujocoAdapter(EngineAdapter):
         for a body that is not a free body (engines._contacts.balance)."""
         m, d, mgr = self.model, self.data, self.manager
         b = np.asarray(keys, dtype=np.int64)
+        if not self._free_body[b].any():  # a robot's links: nothing to account for (what the end gives)
+            nan = np.full(b.size, np.nan)
+            return nan, nan.copy(), nan.copy(), m.body_mass[b]
         g = np.array(m.opt.gravity, dtype=float)
         if m.opt.disableflags & mujoco.mjtDisableBit.mjDSBL_GRAVITY:
             g = np.zeros(3)
