@@ -180,7 +180,7 @@ def rest_sweep(name: str, seed: int, steps: int = STEPS, mu=None) -> dict:
 
 
 #: the gymnasium walkers of :func:`walker_rest` (their own XML, time step, frame_skip and integrator)
-WALKERS = ("Ant-v5", "Humanoid-v5", "Walker2d-v5")
+WALKERS = ("Ant-v5", "Humanoid-v5", "Walker2d-v5", "HalfCheetah-v5")
 #: walker_rest's env steps of seeded random actions, then of zero actions, and its action seed
 WALKER_STEPS, WALKER_SEED = 200, 5
 
