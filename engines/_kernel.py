@@ -1152,8 +1152,13 @@ def _side_width_one(lc, x):
 @jit_inline
 def _side_force(lc, E, eta, x, xd, one):
     """MSFLaw.contact_normal_force of a SideEndLaw at x [m], x' [m/s] (one: the numpy path of one
-    row, _width_one; else the array path, _parts)."""
+    row, _width_one; else the array path, _parts); of an MSFLaw point contact in kp mode msf
+    when lc[LC_SE] is 0 (no side: its psi(x) sqrt(x), (37) with (29), as MSFLaw.normal_force)."""
     x = max(x, 0.0)
+    if lc[LC_SE] == 0.0:
+        F = (_kp(x, lc[LC_RA], KP_MSF) * lc[LC_SRA] + _kp(x, lc[LC_RB], KP_MSF) * lc[LC_SRB]) * math.sqrt(x) * (
+            2.0 * eta * xd + (2.0 / 3.0) * E * x)
+        return max(F, 0.0) if lc[LC_FZ] != 0.0 else F
     if one:
         W = _side_width_one(lc, x)
     else:
@@ -1166,8 +1171,8 @@ def _side_force(lc, E, eta, x, xd, one):
 @jit
 def side_normal_forces(LC, kg, oc, p, x, one, out):
     """F_n(x, 0) [N] into out (k,) of rows p (k,) at x [m] (k,): their kernel groups kg (k,)
-    (CODE_SIDE, no ring), onset constants oc[p] (E, eta_E); one (k,) bool: the row was alone in
-    its group's numpy call."""
+    (CODE_SIDE, no ring; or CODE_MSF in kp mode msf, with LC_SE 0), onset constants oc[p] (E,
+    eta_E); one (k,) bool: the row was alone in its group's numpy call."""
     for r in range(x.shape[0]):
         q = p[r]
         out[r] = _side_force(LC[kg[r]], oc[q, 0], oc[q, 1], x[r], 0.0, one[r])
@@ -1176,7 +1181,7 @@ def side_normal_forces(LC, kg, oc, p, x, one, out):
 @jit
 def side_elastic_energy(LC, kg, oc, p, x, s2, s, w, acc, out):
     """engines._contacts.state.elastic_energy [J] into out (k,) of rows p (k,) at x [m] (k,):
-    their kernel groups kg (k,) (CODE_SIDE, no ring), onset constants oc[p]; s2, s, w (8,): the
+    their kernel groups kg (k,) (as side_normal_forces'), onset constants oc[p]; s2, s, w (8,): the
     Gauss-Legendre nodes squared, nodes and weights on [0, 1]; acc (8,) scratch."""
     for r in range(x.shape[0]):
         q = p[r]

@@ -98,7 +98,8 @@ def test_side_ends_many_is_side_ends():
 def test_side_kernel_is_the_laws_numpy():
     """engines._kernel.side_normal_forces and side_elastic_energy give SideEndLaw's
     contact_normal_force (an array of approaches, and one alone: _width_one's sum) and
-    elastic_energy bit for bit, flat and tilted either way, at and near x = 0."""
+    elastic_energy bit for bit, flat and tilted either way, at and near x = 0; and the MSF
+    point laws' (a sphere, an elliptic contact, overlap-zero separation)."""
     import math
 
     from engines import _kernel as K
@@ -116,10 +117,15 @@ def test_side_kernel_is_the_laws_numpy():
         tilt = (0.0, 1e-4, 0.02, 0.1)[i % 4]
         law.set_pose(tilt, (0.0, math.sin(tilt), -math.sin(tilt), math.sin(tilt))[i % 4])
         laws.append(law)
+    pair = ContactPair(preset("natural-rubber"), preset("steel"))
+    points = [make_law("msf", pair, Curvature.sphere_on_plane(0.005)),
+              make_law("msf", pair, Curvature(0.03, 0.01, math.inf, math.inf)),
+              make_law("msf", pair, Curvature.sphere_on_plane(0.02), separation="overlap-zero")]
+    laws += points
     LC = np.array([kernel_law(q)[1] for q in laws])
     k = 9
     for g, law in enumerate(laws):
-        assert kernel_law(law)[0] == K.CODE_SIDE
+        assert kernel_law(law)[0] == (K.CODE_MSF if any(law is q for q in points) else K.CODE_SIDE)
         x = np.concatenate([[0.0, 1e-9], rng.uniform(0.0, 3e-3, k - 2)])
         on = {"E": rng.uniform(1e6, 5e6, k), "eta_E": rng.uniform(1e2, 1e4, k)}
         oc = np.zeros((k, K.NOC))

@@ -534,7 +534,8 @@ _GL_S2 = _GL_S**2  # elastic_energy's x' = x s^2 (numpy's value of the power)
 
 def side_kernel_rows(mgr, pp) -> np.ndarray:
     """(k,) bool: the rows pp (k,) in contact whose law the compiled kernel has as a lying side's
-    end (CODE_SIDE, no ring: engines._narrow.SideEndLaw), whose normal force and elastic energy
+    end (CODE_SIDE, no ring: engines._narrow.SideEndLaw) or as an MSF point contact in kp mode
+    msf (CODE_MSF: a sphere, a capsule's end, an ellipsoid), whose normal force and elastic energy
     :func:`side_forces` and :func:`side_energies` give for all their groups in one call."""
     from .. import _kernel as K
 
@@ -542,7 +543,9 @@ def side_kernel_rows(mgr, pp) -> np.ndarray:
     ok = kg >= 0
     if np.any(ok):
         k = kg[ok]
-        ok[ok] = (mgr._kcodes[k] == K.CODE_SIDE) & (mgr._kLC[k, K.LC_SRING] == 0.0)
+        c, lc = mgr._kcodes[k], mgr._kLC[k]
+        ok[ok] = (((c == K.CODE_SIDE) & (lc[:, K.LC_SRING] == 0.0) & (lc[:, K.LC_SE] > 0.0))
+                  | ((c == K.CODE_MSF) & (lc[:, K.LC_KPMODE] == K.KP_MSF) & (lc[:, K.LC_SE] == 0.0)))
     return ok & mgr.active[pp]
 
 
