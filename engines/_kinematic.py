@@ -55,6 +55,7 @@ jumps), unless the user declared the placement (``adapter.placed``).
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
@@ -259,3 +260,26 @@ class KinematicBodies:
             if on.size:
                 out[on] += sign * np.einsum("ki,ki->k", J[on], self.velocity_at(j[on], p[on]))
         return out
+
+
+def interrupt_placements(adapter, kin: KinematicBodies, jumped, declared, t: float, what: str, how: str) -> None:
+    """The contacts of the driven bodies ``jumped`` (KinematicBodies.update's) and ``declared``
+    (adapter.placed) interrupted, for both adapters: a declared placement quietly; an undeclared one
+    (a pose change implying an acceleration above KINEMATIC_ACCEL_MAX) counted in ``adapter.jumps`` and
+    ``adapter.interrupted`` and warned when it interrupted a contact. t: the step's time [s]; what: the
+    body's kind in the warning ("driven (mocap)", "mass-0"); how: how the user sets its pose."""
+    for j in sorted(set(jumped) | set(declared)):
+        rows = kin.rows[np.any(kin.sides[kin.rows] == j, axis=1)]
+        if j in declared:
+            adapter.manager.interrupt(rows, f"driven body {kin.names[j]!r} placed (adapter.placed)")
+            continue
+        why = (f"the {what} body {kin.names[j]!r} jumped at t = {t:.6g} s: its pose change implies a velocity "
+               "change above KINEMATIC_ACCEL_MAX dt (engines._kinematic), so it is taken as a placement (no velocity "
+               "this step), not as motion")
+        n = adapter.manager.interrupt(rows, why)
+        adapter.jumps += 1
+        adapter.interrupted += n
+        if n:
+            warnings.warn(f"{why}; {n} MSF contact(s) in progress were interrupted without a record "
+                          f"(adapter.interrupted = {adapter.interrupted}; drive the body smoothly, {how} its pose "
+                          "every step, or declare a placement with adapter.placed([...]))", RuntimeWarning, stacklevel=5)

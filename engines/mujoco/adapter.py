@@ -113,6 +113,7 @@ from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance
 from engines._contacts.state import CENTRED_RTOL, lever_terms_free
 from engines._contacts.balance import DeepOnsets
 from engines._contacts.islands import TOUCH_TOL, push_reach
+from engines._kinematic import interrupt_placements
 from engines._geometry import COINCIDENT_RTOL, Detection, cross_rows, sphere_plane, sphere_sphere
 from engines._sweep import sweep
 from engines._narrow import smooth_contact
@@ -1031,22 +1032,7 @@ class MujocoAdapter(EngineAdapter):
         # a reset or a time set (every tree jumped) restarts the poses; a qpos/qvel write of some tree does not
         reset = kind == "first" or (kind == "jump" and self._tracker.jumped is None)
         jumped = kin.update(d.xpos[b], d.xquat[b], self.timestep, reset=reset, declared=sorted(declared))
-        for j in sorted(set(jumped) | declared):
-            rows = kin.rows[np.any(kin.sides[kin.rows] == j, axis=1)]
-            if j in declared:
-                self.manager.interrupt(rows, f"driven body {kin.names[j]!r} placed (adapter.placed)")
-                continue
-            why = (f"the driven (mocap) body {kin.names[j]!r} jumped at t = {float(d.time):.6g} s: its pose "
-                   f"change implies a velocity change above KINEMATIC_ACCEL_MAX dt (engines._kinematic), so it "
-                   "is taken as a placement (no velocity this step), not as motion")
-            n = self.manager.interrupt(rows, why)
-            self.jumps += 1
-            self.interrupted += n
-            if n:
-                warnings.warn(f"{why}; {n} MSF contact(s) in progress were interrupted without a record "
-                              f"(adapter.interrupted = {self.interrupted}; drive the body smoothly, setting its "
-                              "pose every step, or declare a placement with adapter.placed([...]))",
-                              RuntimeWarning, stacklevel=4)
+        interrupt_placements(self, kin, jumped, declared, float(d.time), "driven (mocap)", "setting")
         if kin.moving:
             self._kin_push = self._push.copy()
             self._kin_push[kin.rows] += kin.push(self.timestep, CANDIDATE_FACTOR)

@@ -80,6 +80,7 @@ import pybullet as pb
 
 from engines import _geometry
 from engines._geometry import cross_rows
+from engines._kinematic import interrupt_placements
 from engines._contacts import SETTLE_AFTER_DURATIONS, _skew, closing_distance, effective_inverse_inertia_free
 from engines._contacts.islands import TOUCH_TOL, push_reach
 from engines._contacts.balance import DeepOnsets
@@ -1019,22 +1020,7 @@ class PybulletAdapter(EngineAdapter):
         po = np.array([[*p, *q] for p, q in raw], float).reshape(-1, 7)
         quat = po[:, [6, 3, 4, 5]]  # pybullet's (x, y, z, w) as (w, x, y, z)
         jumped = kin.update(po[:, :3], quat, self._dt, declared=declared)
-        for k in sorted(set(jumped) | set(declared)):
-            rows = kin.rows[np.any(kin.sides[kin.rows] == k, axis=1)]
-            if k in declared:
-                self.manager.interrupt(rows, f"driven body {kin.names[k]!r} placed (adapter.placed)")
-                continue
-            why = (f"the mass-0 body {kin.names[k]!r} jumped at t = {self.time:.6g} s: its pose change implies a "
-                   "velocity change above KINEMATIC_ACCEL_MAX dt (engines._kinematic), so it is taken as a "
-                   "placement (no velocity this step), not as motion")
-            n = self.manager.interrupt(rows, why)
-            self.jumps += 1
-            self.interrupted += n
-            if n:
-                warnings.warn(f"{why}; {n} MSF contact(s) in progress were interrupted without a record "
-                              f"(adapter.interrupted = {self.interrupted}; drive the body smoothly, resetting its "
-                              "pose every step, or declare a placement with adapter.placed([...]))",
-                              RuntimeWarning, stacklevel=4)
+        interrupt_placements(self, kin, jumped, declared, self.time, "mass-0", "resetting")
         if kin.moving:
             self._push = self._push.copy()
             self._push[kin.rows] += kin.push(self._dt, CANDIDATE_FACTOR)
